@@ -1,0 +1,117 @@
+"""Inside/outside by Embree rays: a point is inside when enough of its rays hit back faces.
+
+The lecture's rule (inside when more than 25% of rays hit back faces); unlike ray parity it holds
+up on meshes that are not watertight (a ray escaping through a hole only lowers the fraction).
+The back-face fraction approximates the generalised winding number near a hole, so the threshold
+decides where the membrane across a hole sits: 0.25 bulges it outwards, 0.5 puts it where the
+winding number does. Measured on the open Stanford bunny (README, "Sign"): 0.25 disagrees with
+the winding number on 0.26% of band voxels, 0.5 on 0.018%; deep interiors are inside with both. Adaptive: 8 rays per
+point first; only points whose 8 rays disagree get the full 64, so closed meshes cost 8 rays.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+INSIDE_FRACTION = 0.5   # the lecture uses 0.25; see README "Sign" for the measured choice
+FIRST_RAYS = 8
+FULL_RAYS = 64
+
+
+def fibonacci_sphere(n: int) -> np.ndarray:
+    """n well-spread unit vectors (spherical Fibonacci lattice)."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    r = np.sqrt(1.0 - z * z)
+    phi = np.pi * (1.0 + 5.0 ** 0.5) * i
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def _random_rotations(n: int, rng: np.random.Generator) -> np.ndarray:
+    """n random rotation matrices (from random unit quaternions)."""
+    q = rng.normal(size=(n, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    w, x, y, z = q.T
+    return np.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
+    ], axis=1).reshape(n, 3, 3)
+
+
+class SignTester:
+    """Embree scene of one mesh, reused for every query of a bake."""
+
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, *,
+                 inside_fraction: float = INSIDE_FRACTION, seed: int = 0):
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+
+        self.scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(self.scene, np.ascontiguousarray(vertices[triangles], dtype=np.float32))
+        tri = vertices[triangles]
+        self.normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float32)
+        self.seed = seed
+        self.inside_fraction = float(inside_fraction)
+
+    def back_face_fraction(self, points: np.ndarray, dirs: np.ndarray, rot: np.ndarray) -> np.ndarray:
+        """Fraction of rays (dirs rotated per point by rot) whose first hit is a back face."""
+        n, k = len(points), len(dirs)
+        d = np.einsum("nij,kj->nki", rot, dirs).reshape(-1, 3).astype(np.float32)
+        o = np.repeat(points.astype(np.float32), k, axis=0)
+        prim = self.scene.run(o, d)  # primID of the first hit, -1 on a miss
+        hit = prim >= 0
+        back = np.zeros(len(prim), bool)
+        back[hit] = np.einsum("ij,ij->i", d[hit], self.normals[prim[hit]]) > 0
+        return back.reshape(n, k).mean(axis=1)
+
+    def inside(self, points: np.ndarray, chunk: int = 200_000) -> np.ndarray:
+        """Boolean per point: True where more than inside_fraction of the rays hit back faces."""
+        points = np.asarray(points, np.float64)
+        rng = np.random.default_rng(self.seed)
+        first, full = fibonacci_sphere(FIRST_RAYS), fibonacci_sphere(FULL_RAYS)
+        out = np.zeros(len(points), bool)
+        for s in range(0, len(points), chunk):
+            p = points[s:s + chunk]
+            rot = _random_rotations(len(p), rng)
+            frac = self.back_face_fraction(p, first, rot)
+            res = frac > self.inside_fraction
+            unsure = np.flatnonzero((frac > 0) & (frac < 1))
+            if unsure.size:
+                res[unsure] = self.back_face_fraction(p[unsure], full, rot[unsure]) > self.inside_fraction
+            out[s:s + chunk] = res
+        return out
+
+
+def flood_signs(sign: np.ndarray, udf: np.ndarray, h: float, todo: np.ndarray, blocked=None,
+                steps: int = 6) -> np.ndarray:
+    """Give samples `todo` (linear indices) the sign of a neighbour they cannot be separated from.
+
+    sign (int8, -1/0/+1) and udf (unsigned distance, inf = far) are dense grids of voxel size h.
+    Two face-adjacent samples whose distances add up to more than h have no surface between
+    them, so they share a sign. Sound when udf is exact up to h (distance.py's seed radius):
+    a computed distance above h then means a true one above h. Near a hole the ray rule is not
+    constant between surfaces, so samples flagged in `blocked` (dense bool) neither give nor
+    receive a flooded sign. Fills `sign` in place; returns the indices still unknown.
+    """
+    limit = 1.01 * h   # a plane between two samples gives d(p) + d(q) == h exactly: keep a margin
+    shape = sign.shape
+    flat_s, flat_d = sign.reshape(-1), udf.reshape(-1)
+    flat_b = blocked.reshape(-1) if blocked is not None else np.zeros(flat_s.shape, bool)
+    strides = (shape[1] * shape[2], shape[2], 1)
+    todo = todo[flat_s[todo] == 0]
+    stuck, todo = todo[flat_b[todo]], todo[~flat_b[todo]]
+    for _ in range(steps):
+        if not todo.size:
+            break
+        coords = np.unravel_index(todo, shape)
+        d = flat_d[todo]
+        for axis in range(3):
+            for delta in (-1, 1):
+                c = coords[axis] + delta
+                ok = (flat_s[todo] == 0) & (c >= 0) & (c < shape[axis])
+                nb = todo[ok] + delta * strides[axis]
+                s = flat_s[nb]
+                safe = (s != 0) & (d[ok] + flat_d[nb] > limit) & ~flat_b[nb]
+                flat_s[todo[ok][safe]] = s[safe]
+        todo = todo[flat_s[todo] == 0]
+    return np.concatenate([stuck, todo])
