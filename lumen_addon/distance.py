@@ -34,22 +34,24 @@ class Grid:
 
 
 def narrow_band_distance(pairs: TrianglePairs, tri: np.ndarray, grid: Grid, limit: float,
-                         seeds=None, seed_radius: float = 1.0, progress=None):
-    """Unsigned distance per grid sample, exact up to `limit` (metres); inf beyond it.
+                         seeds=None, progress=None):
+    """Unsigned distance per grid sample, exact within one voxel of the surface and propagated
+    out to `limit` (metres); inf beyond it.
 
     pairs/tri: triangle constants and corners relative to grid.origin. seeds: optional
     (linear sample indices, triangle ids) known to be closest, instead of seeding from the
-    triangles (a coarser mip reuses its finer mip this way). seed_radius: in voxels.
+    triangles (a coarser mip reuses its finer mip this way).
     Returns (distance float32 array shaped grid.shape, closest triangle int32, -1 where none).
     """
     d2 = np.full(grid.size, np.inf, np.float32)
     closest = np.full(grid.size, -1, np.int32)
+    exact2 = np.float32(grid.h * grid.h)
     if seeds is None:
-        _seed(pairs, tri, grid, d2, closest, seed_radius * grid.h, progress)
+        _seed(pairs, tri, grid, d2, closest, progress)
     else:
         lin, ti = seeds
         _relax(pairs, grid.coords(lin), lin, ti.astype(np.int64), d2, closest)
-    _propagate(pairs, grid, d2, closest, limit, progress)
+    _propagate(pairs, grid, d2, closest, limit, exact2, progress)
     return np.sqrt(d2).reshape(grid.shape), closest.reshape(grid.shape)
 
 
@@ -78,11 +80,31 @@ def box_samples(lo: np.ndarray, hi: np.ndarray, shape, chunk: int = _PAIR_CHUNK)
         start = stop
 
 
-def _seed(pairs, tri, grid, d2, closest, radius, progress):
-    lo = np.ceil((tri.min(axis=1) - radius) / grid.h)
-    hi = np.floor((tri.max(axis=1) + radius) / grid.h)
+def _seed(pairs, tri, grid, d2, closest, progress):
+    """Exact distances for every sample within one voxel of the surface.
+
+    Pass 1 gives cheap upper bounds: each triangle offers itself to the sample nearest its
+    centroid and that spreads one voxel out. Pass 2 pairs each triangle with the samples of its
+    bounding box grown by one voxel, but evaluates only pairs whose bounding-sphere lower bound
+    beats the sample's current best: on dense meshes most pairs are skipped for ~8 flops.
+    """
+    h = grid.h
+    centre = tri.mean(axis=1)
+    radius = np.linalg.norm(tri - centre[:, None], axis=2).max(axis=1)
+    n = np.array(grid.shape)
+    near = np.clip(np.rint(centre / h), 0, n - 1).astype(np.int64)
+    lin = np.ravel_multi_index(near.T, grid.shape)
+    _relax(pairs, grid.coords(lin), lin, np.arange(len(tri)), d2, closest)
+    _propagate(pairs, grid, d2, closest, 1.5 * h, np.float32(0), None)
+
+    lo = np.ceil((tri.min(axis=1) - h) / h)
+    hi = np.floor((tri.max(axis=1) + h) / h)
+    centre32, radius32 = centre.astype(np.float32), radius.astype(np.float32)
     for ti, lin, done in box_samples(lo, hi, grid.shape):
-        _relax(pairs, grid.coords(lin), lin, ti, d2, closest)
+        p = grid.coords(lin)
+        gap = np.sqrt(((p - centre32[ti]) ** 2).sum(axis=1)) - radius32[ti]
+        keep = gap * np.abs(gap) < np.minimum(d2[lin], np.float32(h * h))
+        _relax(pairs, p[keep], lin[keep], ti[keep], d2, closest)
         if progress:
             progress(0.5 * done)
 
@@ -97,7 +119,9 @@ def _relax(pairs, pts, lin, ti, d2, closest):
     return lin[win]
 
 
-def _propagate(pairs, grid, d2, closest, limit, progress):
+def _propagate(pairs, grid, d2, closest, limit, exact2, progress):
+    """Offer each changed sample's closest triangle to its 6 neighbours until nothing improves.
+    Samples with d2 <= exact2 are already exact and are not revisited."""
     limit2 = np.float32(limit * limit)
     sx, sy, sz = grid.shape
     front = np.flatnonzero(d2 <= limit2)
@@ -115,7 +139,7 @@ def _propagate(pairs, grid, d2, closest, limit, progress):
         lin = np.concatenate(cand_lin)
         ti = np.concatenate(cand_tri).astype(np.int64)
         # Skip pairs that cannot change anything: the neighbour already uses this triangle.
-        fresh = closest[lin] != ti
+        fresh = (closest[lin] != ti) & (d2[lin] > exact2)
         lin, ti = lin[fresh], ti[fresh]
         key = np.unique(lin * pairs.count + ti)
         lin, ti = key // pairs.count, key % pairs.count

@@ -178,8 +178,10 @@ def boundary_loops(vertices: np.ndarray, triangles: np.ndarray):
     min-label propagation with pointer jumping (a handful of vectorised passes).
     """
     e = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
-    uniq, counts = np.unique(e, axis=0, return_counts=True)
-    edges = uniq[counts == 1]
+    n = np.int64(len(vertices))
+    uniq, counts = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)  # 1-D keys sort fast
+    single = uniq[counts == 1]
+    edges = np.stack([single // n, single % n], axis=1)
     if not len(edges):
         return np.zeros((0, 3)), np.zeros(0)
     verts, local = np.unique(edges, return_inverse=True)

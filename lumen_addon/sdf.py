@@ -129,6 +129,30 @@ class MeshSDF:
             out[outside] = np.maximum(to_box, out[outside] - gap)
         return out
 
+    def sphere_trace(self, origins, directions, t_max: float, mip: int = 0,
+                     max_steps: int = 256) -> np.ndarray:
+        """Distance along each unit ray to the first surface (sdf <= hit epsilon), inf on a miss.
+
+        The numpy reference for the GPU tracer: steps by the sampled distance (at least a tenth
+        of a voxel, so grazing rays still advance); all rays advance together, one step per loop.
+        """
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        d = np.asarray(directions, np.float64).reshape(-1, 3)
+        h = self.mips[mip].voxel_size
+        eps, min_step = 0.05 * h, 0.1 * h
+        t = np.zeros(len(o))
+        hit = np.full(len(o), np.inf)
+        live = np.arange(len(o))
+        for _ in range(max_steps):
+            if not live.size:
+                break
+            dist = self.sample(o[live] + t[live, None] * d[live], mip)
+            done = dist <= eps
+            hit[live[done]] = t[live[done]]
+            t[live] += np.maximum(dist, min_step)
+            live = live[~done & (t[live] <= t_max)]
+        return hit
+
 
 def plan_resolution(extent, voxel_density: float, resolution_scale: float, max_resolution: int):
     """Voxel size and per-axis mip-0 resolution (whole bricks) for mesh bounds `extent`.
@@ -222,8 +246,8 @@ def _bake_mip(pairs, tri, origin, h, res, signer, holes, prev, progress):
         known_sign[common] = sign_f[common]
         lin = np.flatnonzero(cl >= 0)
         seeds = (lin, cl.reshape(-1)[lin])
-    # Exact out to band + one voxel diagonal so that every brick touching the band is found.
-    udf, closest = narrow_band_distance(pairs, tri, grid, band + math.sqrt(3) * h, seeds=seeds,
+    # Samples beyond the band are stored clamped, so the band is as far as distances are needed.
+    udf, closest = narrow_band_distance(pairs, tri, grid, band, seeds=seeds,
                                         progress=(lambda f: progress(0.8 * f)) if progress else None)
     dist = udf - 0.5 * h if two_sided else udf
     nb = tuple(n // BRICK_CELLS for n in res)
