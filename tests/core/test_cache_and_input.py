@@ -1,0 +1,186 @@
+"""Cache round trip, validation of damaged caches, and bad mesh input: clear errors, nothing lost."""
+import json
+import os
+
+import numpy as np
+import pytest
+
+import shapes
+from lumen_addon.bake import BakeSettings, ObjectInput, SceneBakeError, bake_scene
+from lumen_addon.cache import MANIFEST, CacheError, read_cache, write_cache
+from lumen_addon.geometry import MeshError
+from lumen_addon.sdf import BakeCancelled, bake_mesh_sdf
+
+
+@pytest.fixture(scope="module")
+def scene_bake():
+    sv, sf = shapes.icosphere(0.5, 3)
+    bv, bf = shapes.box()
+    objs = [ObjectInput("Sphere", sv, sf), ObjectInput("Sphere.001", sv, sf, np.diag([2.0, 2, 2, 1])),
+            ObjectInput("Box", bv, bf, two_sided=True)]
+    return bake_scene(objs, BakeSettings(voxel_density=16))
+
+
+def assert_same(a, b):
+    assert a.settings == b.settings
+    assert [(i.name, i.mesh) for i in a.instances] == [(i.name, i.mesh) for i in b.instances]
+    for x, y in zip(a.instances, b.instances):
+        assert np.array_equal(x.matrix_world, y.matrix_world)
+    assert a.meshes.keys() == b.meshes.keys()
+    for k in a.meshes:
+        ma, mb = a.meshes[k], b.meshes[k]
+        assert np.array_equal(ma.origin, mb.origin) and ma.two_sided == mb.two_sided
+        for la, lb in zip(ma.mips, mb.mips, strict=True):
+            assert la.voxel_size == lb.voxel_size and la.resolution == lb.resolution
+            assert np.array_equal(la.indirection, lb.indirection)
+            assert np.array_equal(la.bricks, lb.bricks)
+
+
+def test_instances_share_one_bake(scene_bake):
+    assert len(scene_bake.instances) == 3 and len(scene_bake.meshes) == 2
+    assert scene_bake.stats()["unique_meshes"] == 2
+
+
+def test_round_trip_identical(scene_bake, tmp_path):
+    write_cache(tmp_path / "c", scene_bake)
+    back = read_cache(tmp_path / "c")
+    assert_same(scene_bake, back)
+    # Samples from the read-back cache equal the original's.
+    k = next(iter(back.meshes))
+    p = np.random.default_rng(0).uniform(-0.6, 0.6, (500, 3))
+    assert np.array_equal(back.meshes[k].sample(p), scene_bake.meshes[k].sample(p))
+    assert json.loads((tmp_path / "c" / MANIFEST).read_text())["stats"]["objects"] == 3
+
+
+def test_rebake_reuses_unchanged_meshes(scene_bake):
+    sv, sf = shapes.icosphere(0.5, 3)
+    again = bake_scene([ObjectInput("Sphere", sv, sf)], scene_bake.settings, previous=scene_bake)
+    assert again.reused == 1
+    moved = bake_scene([ObjectInput("Sphere", sv * 1.01, sf)], scene_bake.settings, previous=scene_bake)
+    assert moved.reused == 0
+
+
+def _damaged(tmp_path, scene_bake, damage):
+    folder = tmp_path / "c"
+    write_cache(folder, scene_bake)
+    damage(folder)
+    with pytest.raises(CacheError) as err:
+        read_cache(folder)
+    return str(err.value)
+
+
+def test_truncated_arrays(tmp_path, scene_bake):
+    def cut(folder):
+        npz = next(folder.glob("sdf-*.npz"))
+        npz.write_bytes(npz.read_bytes()[:1000])
+    msg = _damaged(tmp_path, scene_bake, cut)
+    assert "sdf-" in msg and "truncated" in msg
+
+
+def test_other_version(tmp_path, scene_bake):
+    def bump(folder):
+        m = json.loads((folder / MANIFEST).read_text())
+        m["version"] = 99
+        (folder / MANIFEST).write_text(json.dumps(m))
+    assert "version 99" in _damaged(tmp_path, scene_bake, bump)
+
+
+def test_not_a_cache(tmp_path):
+    (tmp_path / "x").mkdir()
+    with pytest.raises(CacheError, match="no cache manifest"):
+        read_cache(tmp_path / "x")
+    (tmp_path / "x" / MANIFEST).write_text("{not json")
+    with pytest.raises(CacheError, match="not a Lumen GI cache"):
+        read_cache(tmp_path / "x")
+    (tmp_path / "x" / MANIFEST).write_text(json.dumps({"format": "something-else"}))
+    with pytest.raises(CacheError, match="not a Lumen GI cache"):
+        read_cache(tmp_path / "x")
+
+
+def test_shape_mismatch_is_caught(tmp_path, scene_bake):
+    def lie(folder):
+        m = json.loads((folder / MANIFEST).read_text())
+        m["meshes"][0]["mips"][0]["bricks_kept"] += 1
+        (folder / MANIFEST).write_text(json.dumps(m))
+    assert "manifest says" in _damaged(tmp_path, scene_bake, lie)
+
+
+def test_unwritable_folder_keeps_previous_cache(tmp_path, scene_bake):
+    good = tmp_path / "good"
+    write_cache(good, scene_bake)
+    before = {p.name: p.read_bytes() for p in good.iterdir()}
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    with pytest.raises(CacheError, match="a_file"):
+        write_cache(blocker / "cache", scene_bake)
+    assert {p.name: p.read_bytes() for p in good.iterdir()} == before
+
+
+def test_failed_write_leaves_previous_cache_readable(tmp_path, scene_bake, monkeypatch):
+    folder = tmp_path / "c"
+    write_cache(folder, scene_bake)
+    before = {p.name: p.read_bytes() for p in folder.iterdir()}
+    real = os.replace
+
+    def disk_full(src, dst):      # the manifest rename fails as on a full disk
+        if str(dst).endswith(MANIFEST):
+            raise OSError(28, "No space left on device")
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "replace", disk_full)
+    sv, sf = shapes.icosphere(0.5, 2)
+    other = bake_scene([ObjectInput("Other", sv, sf)], BakeSettings(voxel_density=8))
+    with pytest.raises(CacheError, match="No space left"):
+        write_cache(folder, other)
+    monkeypatch.undo()
+    assert_same(scene_bake, read_cache(folder))
+    assert {p.name for p in folder.iterdir()} >= set(before)
+    assert not [p for p in folder.iterdir() if p.name.endswith(".tmp")]
+
+
+@pytest.mark.parametrize("vertices, triangles, message", [
+    (np.zeros((3, 3)), np.zeros((0, 3), int), "no faces"),
+    (np.array([[0, 0, 0], [1, 0, 0], [np.nan, 1, 0]]), np.array([[0, 1, 2]]), "NaN"),
+    (np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0]]), np.array([[0, 1, 2]]), "degenerate"),
+    (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 5]]), "out of range"),
+    (np.zeros((3, 2)), np.array([[0, 1, 2]]), "shape"),
+])
+def test_bad_meshes(vertices, triangles, message):
+    with pytest.raises(MeshError, match=message):
+        bake_mesh_sdf(vertices, triangles)
+
+
+def test_bad_scene_names_every_bad_object():
+    sv, sf = shapes.icosphere(0.5, 1)
+    bad = sv.copy()
+    bad[0] = np.inf
+    with pytest.raises(SceneBakeError) as err:
+        bake_scene([ObjectInput("Good", sv, sf), ObjectInput("Broken", bad, sf),
+                    ObjectInput("Empty", sv, np.zeros((0, 3), int))])
+    names = [n for n, _ in err.value.problems]
+    assert names == ["Broken", "Empty"]
+    with pytest.raises(SceneBakeError, match="no visible mesh"):
+        bake_scene([])
+
+
+def test_huge_resolution_is_clamped_not_hung():
+    v, f = shapes.box()
+    b = bake_scene([ObjectInput("Box", v, f, resolution_scale=1e6)], BakeSettings(voxel_density=1e4))
+    m = next(iter(b.meshes.values()))
+    assert max(m.mips[0].resolution) <= 126
+    assert b.warnings and b.warnings[0][0] == "Box" and "clamped" in b.warnings[0][1]
+    with pytest.raises(SceneBakeError, match="max resolution"):
+        bake_scene([ObjectInput("Box", v, f)], BakeSettings(max_resolution=100000))
+    with pytest.raises(SceneBakeError, match="voxel density"):
+        bake_scene([ObjectInput("Box", v, f)], BakeSettings(voxel_density=float("nan")))
+
+
+def test_cancel_from_progress():
+    v, f = shapes.icosphere(0.5, 3)
+
+    def stop(fraction, name):
+        if fraction > 0.1:
+            raise BakeCancelled()
+
+    with pytest.raises(BakeCancelled):
+        bake_scene([ObjectInput("S", v, f)], BakeSettings(voxel_density=40), progress=stop)
