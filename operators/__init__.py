@@ -1,0 +1,18 @@
+"""Everything that reads or writes Blender data: extraction, properties, operators, the panel.
+
+Each module registers its own classes; order matters (properties before the operators and panel
+that use them).
+"""
+from . import bake_op, export_op, extract, panel, properties
+
+_MODULES = (properties, extract, bake_op, export_op, panel)
+
+
+def register():
+    for mod in _MODULES:
+        mod.register()
+
+
+def unregister():
+    for mod in reversed(_MODULES):
+        mod.unregister()

@@ -1,0 +1,255 @@
+"""`lumen.bake`: extract the scene, bake every mesh SDF, write the cache folder.
+
+In the UI the bake runs in a worker thread (numpy and Embree only; bpy is touched on the main
+thread alone) while a timer polls it, so Blender stays responsive and Esc cancels. In background
+mode and from scripts `execute` runs the same steps synchronously. Every failure becomes an
+ERROR report and {'CANCELLED'}: nothing is written and the previous cache stays as it was.
+"""
+import tempfile
+import threading
+import traceback
+from pathlib import Path
+
+import bpy
+
+from ..lumen_addon.bake import BakeCancelled, BakeSettings, SceneBakeError, bake_scene
+from ..lumen_addon.cache import CacheError, write_cache
+from .extract import extract_objects
+from .properties import INT_MAX
+
+# Last successful bake per scene name: reused by the next bake (unchanged meshes are not baked
+# again) and written by `lumen.export_cache`. Kept in memory only; the cache folder is the record.
+LAST_BAKES = {}
+# Scenes with a modal bake under way -> its job, so a second bake or an export waits for it.
+RUNNING = {}
+
+POLL_SECONDS = 0.1
+
+
+def settings_from(scene) -> BakeSettings:
+    s = scene.lumen
+    return BakeSettings(voxel_density=float(s.voxel_density), max_resolution=int(s.max_resolution))
+
+
+def resolve_folder(path: str, default_name: str = "lumen_cache") -> Path:
+    """Absolute folder for a (possibly `//`-relative) path setting.
+
+    An unsaved .blend has no folder for `//` to mean, so such paths go under the system temp
+    folder (not `bpy.app.tempdir`, which Blender deletes on exit).
+    """
+    raw = (path or "").strip() or f"//{default_name}"
+    if raw.startswith("//") and not bpy.data.filepath:
+        rel = raw[2:].strip("/\\") or default_name
+        return Path(tempfile.gettempdir()) / "lumen_gi" / rel
+    return Path(bpy.path.abspath(raw))
+
+
+def human_bytes(n: int) -> str:
+    for unit in ("B", "KB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.2f} {unit}"
+        n /= 1000.0
+    return f"{n:.2f} GB"
+
+
+def failure_message(exc: BaseException) -> str:
+    """Readable one-line reason; SceneBakeError and CacheError already name the object/file."""
+    if isinstance(exc, (SceneBakeError, CacheError)):
+        return str(exc)
+    return f"{type(exc).__name__}: {exc}"
+
+
+def record_bake(scene, bake, status: str):
+    """Store `bake` as the scene's last bake and copy its stats into `scene.lumen`."""
+    stats = bake.stats()
+    s = scene.lumen
+    s.last_objects = min(stats["objects"], INT_MAX)
+    s.last_unique_meshes = min(stats["unique_meshes"], INT_MAX)
+    s.last_bricks = min(stats["bricks"], INT_MAX)
+    s.last_bytes = min(stats["bytes"], INT_MAX)
+    s.last_reused = min(stats["reused"], INT_MAX)
+    s.last_seconds = float(stats["seconds"])
+    s.last_status = status
+    LAST_BAKES[scene.name] = bake
+
+
+def bake_now(context, scene):
+    """Extract and bake synchronously (raises SceneBakeError and friends)."""
+    objects = extract_objects(context.evaluated_depsgraph_get())
+    return bake_scene(objects, settings_from(scene), previous=LAST_BAKES.get(scene.name))
+
+
+class _Job:
+    """One bake of extracted arrays; `thread` runs it in the background, `run()` in place.
+
+    Only plain arrays reach the worker, never bpy data, so the thread cannot race Blender.
+    """
+
+    def __init__(self, scene_name, objects, settings, previous):
+        self.scene_name = scene_name
+        self.cancel = threading.Event()
+        self.fraction, self.current = 0.0, ""
+        self.result, self.error = None, None
+        self._inputs = (objects, settings, previous)
+        self.thread = threading.Thread(target=self.run, name="lumen-bake", daemon=True)
+
+    def _progress(self, fraction, name):
+        self.fraction, self.current = float(fraction), name or self.current
+        if self.cancel.is_set():
+            raise BakeCancelled()
+
+    def run(self):
+        objects, settings, previous = self._inputs
+        self._inputs = None   # the arrays are not needed once the bake has them
+        try:
+            self.result = bake_scene(objects, settings, previous=previous, progress=self._progress)
+        except BaseException as exc:   # reported on the main thread
+            self.error = exc
+
+
+class LUMEN_OT_bake(bpy.types.Operator):
+    """Bake the signed distance fields of every visible mesh and write the Lumen GI cache"""
+
+    bl_idname = "lumen.bake"
+    bl_label = "Bake Lumen GI"
+    bl_options = {'REGISTER'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None
+
+    # -- shared steps ---------------------------------------------------------------------------
+
+    def _fail(self, scene, exc):
+        msg = failure_message(exc)
+        if not isinstance(exc, (SceneBakeError, CacheError, BakeCancelled)):
+            traceback.print_exception(exc)   # unexpected: keep the trace for bug reports
+        if scene is not None:
+            scene.lumen.last_status = f"Bake failed: {msg}"
+        self.report({'ERROR'}, f"Lumen bake failed: {msg}")
+        return {'CANCELLED'}
+
+    def _finish(self, scene, bake):
+        """Write the cache, then record stats: a bake that cannot be written changes nothing."""
+        try:
+            folder = resolve_folder(scene.lumen.cache_dir)
+            write_cache(folder, bake)
+        except Exception as exc:
+            return self._fail(scene, exc)
+        stats = bake.stats()
+        status = (f"Baked {stats['objects']} objects, {stats['unique_meshes']} meshes "
+                  f"({stats['reused']} reused), {human_bytes(stats['bytes'])} in "
+                  f"{stats['seconds']:.2f} s to {folder}")
+        record_bake(scene, bake, status)
+        for name, message in bake.warnings:
+            self.report({'WARNING'}, f"{name}: {message}")
+        self.report({'INFO'}, status)
+        return {'FINISHED'}
+
+    def _start(self, context):
+        """Extract on the main thread; returns a _Job ready to run (or None after a report)."""
+        scene = context.scene
+        if scene.name in RUNNING:
+            self.report({'ERROR'}, f"A Lumen bake of scene '{scene.name}' is already running")
+            return None
+        try:
+            objects = extract_objects(context.evaluated_depsgraph_get())
+        except Exception as exc:
+            self._fail(scene, exc)
+            return None
+        return _Job(scene.name, objects, settings_from(scene), LAST_BAKES.get(scene.name))
+
+    def _conclude(self, job):
+        """Turn a finished job into the cache, stats and reports (both execute and modal)."""
+        scene = bpy.data.scenes.get(job.scene_name)
+        if scene is None:
+            self.report({'ERROR'}, f"Lumen bake: scene '{job.scene_name}' no longer exists")
+            return {'CANCELLED'}
+        if isinstance(job.error, BakeCancelled):
+            scene.lumen.last_status = "Bake cancelled"
+            self.report({'WARNING'}, "Lumen bake cancelled; the cache was not changed")
+            return {'CANCELLED'}
+        if job.error is not None:
+            return self._fail(scene, job.error)
+        return self._finish(scene, job.result)
+
+    # -- synchronous (background mode, scripts) -------------------------------------------------
+
+    def execute(self, context):
+        job = self._start(context)
+        if job is None:
+            return {'CANCELLED'}
+        job.run()
+        return self._conclude(job)
+
+    # -- modal (interactive) --------------------------------------------------------------------
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        job = self._start(context)
+        if job is None:
+            return {'CANCELLED'}
+        self._job = job
+        RUNNING[job.scene_name] = job
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(POLL_SECONDS, window=context.window)
+        wm.progress_begin(0.0, 1.0)
+        wm.modal_handler_add(self)
+        job.thread.start()
+        self._show(context, "starting")
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
+            job.cancel.set()
+            self._show(context, "cancelling")
+            return {'RUNNING_MODAL'}
+        if event.type != 'TIMER':
+            return {'PASS_THROUGH'}
+        if job.thread.is_alive():
+            context.window_manager.progress_update(job.fraction)
+            self._show(context, "cancelling" if job.cancel.is_set() else job.current)
+            return {'PASS_THROUGH'}
+        self._cleanup(context)
+        return self._conclude(job)
+
+    def cancel(self, context):
+        """Blender is cancelling the operator (file load, quit): stop the worker, write nothing."""
+        self._job.cancel.set()
+        self._job.thread.join(timeout=10.0)
+        self._cleanup(context)
+
+    def _show(self, context, what):
+        text = f"Lumen GI: baking {self._job.fraction:.0%}"
+        if what:
+            text += f" ({what})"
+        context.workspace.status_text_set(text + " - Esc to cancel")
+        for area in context.screen.areas if context.screen else ():
+            if area.type == 'VIEW_3D':
+                area.tag_redraw()
+
+    def _cleanup(self, context):
+        RUNNING.pop(self._job.scene_name, None)
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        for area in context.screen.areas if context.screen else ():
+            if area.type == 'VIEW_3D':
+                area.tag_redraw()
+
+
+def register():
+    bpy.utils.register_class(LUMEN_OT_bake)
+
+
+def unregister():
+    for job in list(RUNNING.values()):
+        job.cancel.set()
+    bpy.utils.unregister_class(LUMEN_OT_bake)
+    LAST_BAKES.clear()

@@ -1,0 +1,65 @@
+"""Scene and object settings for the bake (`scene.lumen`, `object.lumen`).
+
+The `last_*` scene properties are written by the bake operator only; they live in the .blend so
+the panel still shows what the cache on disk holds after the file is reopened.
+"""
+import bpy
+from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+
+from ..lumen_addon.sdf import DEFAULT_MAX_RESOLUTION, HARD_MAX_RESOLUTION
+
+INT_MAX = 2 ** 31 - 1   # IntProperty is 32-bit; stats beyond it are clamped for display
+
+
+class LumenSceneSettings(bpy.types.PropertyGroup):
+    __slots__ = ()   # Blender 5 warns about property groups that accept arbitrary attributes
+
+    voxel_density: FloatProperty(
+        name="Voxel Density", description="SDF voxels per metre at an object resolution scale of 1",
+        default=20.0, min=0.1, soft_max=100.0)
+    max_resolution: IntProperty(
+        name="Max Resolution", description="Largest SDF resolution per axis of one mesh (mip 0)",
+        default=DEFAULT_MAX_RESOLUTION, min=14, max=HARD_MAX_RESOLUTION)
+    cache_dir: StringProperty(
+        name="Cache Folder", description="Where the bake is written (relative to the .blend file)",
+        default="//lumen_cache", subtype='DIR_PATH')
+
+    last_objects: IntProperty(name="Objects", description="Objects in the last bake", min=0)
+    last_unique_meshes: IntProperty(name="Unique Meshes",
+                                    description="Distinct meshes baked (instances share one)", min=0)
+    last_bricks: IntProperty(name="Bricks", description="SDF bricks kept, all mips", min=0)
+    last_bytes: IntProperty(name="Bytes", description="Size of the SDF bricks and indirection tables",
+                            min=0)
+    last_reused: IntProperty(name="Reused", min=0,
+                             description="Meshes of the last bake taken unchanged from the bake before")
+    last_seconds: FloatProperty(name="Seconds", description="Duration of the last bake", min=0.0)
+    last_status: StringProperty(name="Status", description="Outcome of the last bake or export")
+
+
+class LumenObjectSettings(bpy.types.PropertyGroup):
+    __slots__ = ()
+
+    two_sided: BoolProperty(
+        name="Two Sided",
+        description="The mesh has no inside (foliage, cards, thin walls): the SDF is unsigned and "
+                    "thickened by half a voxel so light cannot leak through")
+    resolution_scale: FloatProperty(
+        name="Resolution Scale", description="Multiplies the scene voxel density for this object",
+        default=1.0, min=0.01, max=16.0)
+
+
+_CLASSES = (LumenSceneSettings, LumenObjectSettings)
+
+
+def register():
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.lumen = PointerProperty(type=LumenSceneSettings)
+    bpy.types.Object.lumen = PointerProperty(type=LumenObjectSettings)
+
+
+def unregister():
+    del bpy.types.Object.lumen
+    del bpy.types.Scene.lumen
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)
