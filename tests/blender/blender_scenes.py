@@ -1,0 +1,84 @@
+"""Small scenes and checks for the Blender tests; imported inside the bpy subprocess."""
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+
+def empty_scene(voxel_density: float = 4.0, cache_dir: str | None = None):
+    """A new empty file with low-resolution bake settings (fast tests)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.lumen.voxel_density = voxel_density
+    if cache_dir is not None:
+        scene.lumen.cache_dir = str(cache_dir)
+    return scene
+
+
+def link(obj, collection=None):
+    (collection or bpy.context.scene.collection).objects.link(obj)
+    return obj
+
+
+def cube(name: str, size: float = 1.0, location=(0, 0, 0)):
+    bpy.ops.mesh.primitive_cube_add(size=size, location=location)
+    obj = bpy.context.object
+    obj.name = name
+    return obj
+
+
+def sphere(name: str, location=(0, 0, 0), subdivide: int = 0):
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=8, ring_count=4, radius=0.5, location=location)
+    obj = bpy.context.object
+    obj.name = name
+    if subdivide:
+        obj.modifiers.new("Subdivision", 'SUBSURF').levels = subdivide
+    return obj
+
+
+def loose_vertices(name: str):
+    """A mesh object with vertices and no faces."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([(0, 0, 0), (1, 0, 0), (0, 1, 0)], [], [])
+    return link(bpy.data.objects.new(name, mesh))
+
+
+def set_nan_vertex(obj):
+    co = np.empty(len(obj.data.vertices) * 3, np.float32)
+    obj.data.vertices.foreach_get("co", co)
+    co[0] = np.nan
+    obj.data.vertices.foreach_set("co", co)
+    obj.data.update()
+
+
+def collection_instancer(name: str, collection, location=(0, 0, 0)):
+    empty = bpy.data.objects.new(name, None)
+    empty.instance_type = 'COLLECTION'
+    empty.instance_collection = collection
+    empty.location = location
+    return link(empty)
+
+
+def bake(op=None, **kwargs):
+    """Run an operator; returns (result set or None, error text or None)."""
+    op = op or bpy.ops.lumen.bake
+    try:
+        return sorted(op(**kwargs)), None
+    except RuntimeError as exc:
+        return None, str(exc)
+
+
+def snapshot(folder) -> dict:
+    """sha256 of every file in a folder, to prove a failed bake touched nothing."""
+    folder = Path(folder)
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+def scene_stats(scene) -> dict:
+    s = scene.lumen
+    return {k: getattr(s, k) for k in ("last_objects", "last_unique_meshes", "last_bricks",
+                                       "last_bytes", "last_reused", "last_seconds", "last_status")}
