@@ -130,16 +130,20 @@ def _propagate(pairs, grid, d2, closest, limit, exact2, progress):
     while front.size and steps < max_steps:
         ix, iy, iz = np.unravel_index(front, grid.shape)
         tri = closest[front]
-        cand_lin, cand_tri = [], []
+        front_d2 = d2[front]
+        cand_lin, cand_tri, oks = [], [], []
         for axis_idx, stride, size in ((ix, sy * sz, sx), (iy, sz, sy), (iz, 1, sz)):
             for delta in (-1, 1):
                 ok = (axis_idx + delta >= 0) & (axis_idx + delta < size)
+                oks.append(ok)
                 cand_lin.append(front[ok] + delta * stride)
                 cand_tri.append(tri[ok])
         lin = np.concatenate(cand_lin)
         ti = np.concatenate(cand_tri).astype(np.int64)
-        # Skip pairs that cannot change anything: the neighbour already uses this triangle.
-        fresh = (closest[lin] != ti) & (d2[lin] > exact2)
+        # Skip pairs that cannot change anything: the neighbour already uses this triangle, is
+        # already exact, or is nearer the surface than the sample offering it (fronts move out).
+        src_d2 = np.concatenate([front_d2[ok] for ok in oks])
+        fresh = (closest[lin] != ti) & (d2[lin] > exact2) & (d2[lin] > src_d2)
         lin, ti = lin[fresh], ti[fresh]
         key = np.unique(lin * pairs.count + ti)
         lin, ti = key // pairs.count, key % pairs.count

@@ -15,6 +15,7 @@ Layout of one mip (all arrays indexed [x, y, z]):
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,6 +65,7 @@ class MeshSDF:
     mips: list = field(default_factory=list)
     requested_resolution: tuple = ()   # what density x scale asked for, before the clamp
     dropped_degenerate: int = 0
+    timings: dict = field(default_factory=dict)   # seconds per bake stage, summed over mips
 
     @property
     def voxel_size(self) -> float:
@@ -198,6 +200,7 @@ def bake_mesh_sdf(vertices, triangles, *, voxel_density: float = 20.0, resolutio
     progress: optional callable(fraction 0..1); raise BakeCancelled from it to stop.
     Raises MeshError (with the reason) on meshes that cannot be baked.
     """
+    t0 = time.perf_counter()
     mesh = clean_mesh(vertices, triangles)
     v, t = mesh.vertices, mesh.triangles
     used = v[np.unique(t)]
@@ -210,6 +213,7 @@ def bake_mesh_sdf(vertices, triangles, *, voxel_density: float = 20.0, resolutio
     pairs = TrianglePairs(v, t, origin)
     tri = v[t] - origin
     holes = boundary_loops(v, t) if signer is not None else None
+    sdf.timings["setup"] = time.perf_counter() - t0
     # Mip k has half the voxels of mip k-1, rounded up to whole bricks. Its samples coincide with
     # the even samples of mip k-1, whose closest triangles and signs seed it: coarse mips are cheap.
     weights = np.array([1.0] + [0.15] * (mip_count - 1))
@@ -223,14 +227,14 @@ def bake_mesh_sdf(vertices, triangles, *, voxel_density: float = 20.0, resolutio
             lo, span = done[k], done[k + 1] - done[k]
             sub = lambda f, lo=lo, span=span: progress(lo + span * f)  # noqa: E731
         mip, prev = _bake_mip(pairs, tri, origin, h0 * 2 ** k, tuple(int(x) for x in res),
-                              signer, holes, prev, sub)
+                              signer, holes, prev, sub, sdf.timings)
         sdf.mips.append(mip)
     if progress:
         progress(1.0)
     return sdf
 
 
-def _bake_mip(pairs, tri, origin, h, res, signer, holes, prev, progress):
+def _bake_mip(pairs, tri, origin, h, res, signer, holes, prev, progress, timings):
     """One mip. signer: None for two-sided meshes. holes: boundary-loop spheres (centres, radii).
     prev: (closest, sign) dense grids of the finer mip, or None. Returns (mip, state)."""
     two_sided = signer is None
@@ -246,10 +250,12 @@ def _bake_mip(pairs, tri, origin, h, res, signer, holes, prev, progress):
         known_sign[common] = sign_f[common]
         lin = np.flatnonzero(cl >= 0)
         seeds = (lin, cl.reshape(-1)[lin])
+    clock = time.perf_counter()
     # Samples beyond the band are stored clamped, so the band is as far as distances are needed.
     udf, closest = narrow_band_distance(pairs, tri, grid, band, seeds=seeds,
                                         progress=(lambda f: progress(0.8 * f)) if progress else None)
     dist = udf - 0.5 * h if two_sided else udf
+    clock = _tick(timings, "distance", clock)
     nb = tuple(n // BRICK_CELLS for n in res)
     near = _brick_min(np.abs(dist), nb) < band
     kept = np.argwhere(near)                     # (K, 3) brick coordinates, C order
@@ -262,17 +268,19 @@ def _bake_mip(pairs, tri, origin, h, res, signer, holes, prev, progress):
     values = dist.reshape(-1)[lin]
     sign = np.zeros(grid.shape, np.int8)         # -1 inside, +1 outside, 0 not computed
     if signer is not None:
-        # Rays for every other sample per axis (the finer mip already answered those for coarser
-        # mips), then flood signs across surface-free edges; rays only for what is left.
+        # Rays for every 4th sample per axis (a coarser mip: every 2nd, which the finer mip
+        # already answered), then flood signs across surface-free edges; rays for what is left.
         uniq, inv = np.unique(lin, return_inverse=True)
         if known_sign is not None:
             sign.reshape(-1)[uniq] = known_sign.reshape(-1)[uniq]
-        coarse = uniq[np.all(np.stack(np.unravel_index(uniq, grid.shape)) % 2 == 0, axis=0)]
+        stride = 4 if known_sign is None else 2
+        coarse = uniq[np.all(np.stack(np.unravel_index(uniq, grid.shape)) % stride == 0, axis=0)]
         _cast(signer, grid, sign, coarse[sign.reshape(-1)[coarse] == 0])
-        rest = flood_signs(sign, udf, h, uniq, blocked=_near_holes(grid, holes))
+        rest = flood_signs(sign, udf, h, uniq, blocked=_near_holes(grid, holes), steps=3 * stride)
         _cast(signer, grid, sign, rest)
         s = sign.reshape(-1)[uniq]
         values = values * s[inv]
+        clock = _tick(timings, "sign", clock)
         empty = np.argwhere(~near)
         if len(empty):
             centres = origin + (empty + 0.5) * BRICK_CELLS * h
@@ -282,7 +290,14 @@ def _bake_mip(pairs, tri, origin, h, res, signer, holes, prev, progress):
         progress(1.0)
     codes = np.clip(np.rint(np.clip(values, -band, band) / band * 127.5 + 127.5), 0, 255)
     bricks = codes.astype(np.uint8).reshape(len(kept), BRICK, BRICK, BRICK)
+    _tick(timings, "bricks", clock)
     return SDFMip(voxel_size=h, resolution=res, indirection=indirection, bricks=bricks), (closest, sign)
+
+
+def _tick(timings, stage, since):
+    now = time.perf_counter()
+    timings[stage] = timings.get(stage, 0.0) + now - since
+    return now
 
 
 def _near_holes(grid, holes):
