@@ -1,4 +1,7 @@
-"""Run real Blender (the bpy module) in a subprocess per test.
+"""Run real Blender (the bpy module) in a subprocess per test; test modules import `blender`.
+
+Not a conftest.py: tests/core imports `from conftest import ...`, and a second conftest module
+here would shadow tests/conftest.py in sys.modules.
 
 Each test gets a fresh Blender: registration, scene state and module-level caches cannot leak
 between tests, a crash shows up as an exit code instead of killing pytest, and Blender's user

@@ -2,6 +2,8 @@
 and the cache written by an earlier good bake stays byte-for-byte as it was."""
 import pytest
 
+from blender_runner import blender  # noqa: F401  (fixture)
+
 # Bake a good scene first, keep a fingerprint of its cache, then run the test's `setup` (which
 # breaks something) and bake again. The subprocess exiting 0 is the "no crash" check.
 TEMPLATE = """

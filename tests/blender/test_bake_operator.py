@@ -1,4 +1,5 @@
 """`lumen.bake` and `lumen.export_cache` on real scenes, in a fresh Blender per test."""
+from blender_runner import blender  # noqa: F401  (fixture)
 
 
 def test_bake_shares_instances_uses_evaluated_meshes_and_writes_cache(blender, tmp_path):

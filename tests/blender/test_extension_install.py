@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from blender_runner import blender  # noqa: F401  (fixture)
+
 ROOT = Path(__file__).resolve().parents[2]
 EXIT_DOWNLOAD_FAILED = 3   # tools/build_extension.py: a wheel could not be downloaded
 
