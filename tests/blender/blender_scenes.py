@@ -62,6 +62,28 @@ def collection_instancer(name: str, collection, location=(0, 0, 0)):
     return link(empty)
 
 
+def geometry_nodes_scatter(name: str, instance_node: str = "GeometryNodeMeshIcoSphere"):
+    """A plane whose geometry nodes put one mesh instance on each of its 4 vertices and keep
+    the plane itself (Join Geometry)."""
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    plane = bpy.context.object
+    plane.name = name
+    tree = bpy.data.node_groups.new(name, 'GeometryNodeTree')
+    tree.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
+    tree.interface.new_socket("Geometry", in_out='OUTPUT', socket_type='NodeSocketGeometry')
+    nodes, links = tree.nodes, tree.links
+    group_in, group_out = nodes.new("NodeGroupInput"), nodes.new("NodeGroupOutput")
+    on_points, mesh = nodes.new("GeometryNodeInstanceOnPoints"), nodes.new(instance_node)
+    join = nodes.new("GeometryNodeJoinGeometry")
+    links.new(group_in.outputs[0], on_points.inputs["Points"])
+    links.new(mesh.outputs["Mesh"], on_points.inputs["Instance"])
+    links.new(on_points.outputs["Instances"], join.inputs[0])
+    links.new(group_in.outputs[0], join.inputs[0])
+    links.new(join.outputs[0], group_out.inputs[0])
+    plane.modifiers.new("Scatter", 'NODES').node_group = tree
+    return plane
+
+
 def bake(op=None, **kwargs):
     """Run an operator; returns (result set or None, error text or None)."""
     op = op or bpy.ops.lumen.bake

@@ -60,6 +60,33 @@ def test_bake_shares_instances_uses_evaluated_meshes_and_writes_cache(blender, t
     assert stats["last_status"].startswith("Baked 6 objects") and str(cache) in stats["last_status"]
 
 
+def test_geometry_nodes_instances_bake_once_with_their_own_matrices(blender, tmp_path):
+    cache = tmp_path / "cache"
+    res = blender(f"""
+        scene = empty_scene(cache_dir={str(cache)!r})
+        scatter = geometry_nodes_scatter("Scatter")
+        scatter.lumen.resolution_scale = 0.5     # instances take their instancer's settings
+        from lumen_gi.operators.extract import extract_objects
+        objects = extract_objects(bpy.context.evaluated_depsgraph_get())
+        result, error = bake()
+        from lumen_gi.lumen_addon.cache import read_cache
+        back = read_cache({str(cache)!r})
+        emit(result=result, error=error,
+             objects=[(o.name, len(o.triangles), o.matrix_world[:3, 3].tolist(), o.resolution_scale)
+                      for o in objects],
+             meshes={{i.name: i.mesh for i in back.instances}}, stats=scene_stats(scene))
+    """)
+    r = res.result
+    assert r["result"] == ["FINISHED"], r["error"]
+    plane, *instances = r["objects"]
+    assert plane[:2] == ["Scatter", 2]
+    assert len(instances) == 4
+    assert {tuple(o[2]) for o in instances} == {(x, y, 0.0) for x in (-2.0, 2.0) for y in (-2.0, 2.0)}
+    assert all(o[1] == 20 and o[0].startswith("Scatter/") and o[3] == 0.5 for o in instances)
+    assert len({r["meshes"][o[0]] for o in instances}) == 1       # one bake for all four
+    assert r["stats"]["last_objects"] == 5 and r["stats"]["last_unique_meshes"] == 2
+
+
 def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tmp_path):
     cache, exp1, exp2 = tmp_path / "cache", tmp_path / "export1", tmp_path / "export2"
     res = blender(f"""
