@@ -129,6 +129,12 @@ class LUMEN_OT_bake(bpy.types.Operator):
         self.report({'ERROR'}, f"Lumen bake failed: {msg}")
         return {'CANCELLED'}
 
+    def _unexpected(self, exc):
+        """Last line of defence: no exception ever escapes into Blender."""
+        traceback.print_exception(exc)
+        self.report({'ERROR'}, f"Lumen bake failed: unexpected {type(exc).__name__}: {exc}")
+        return {'CANCELLED'}
+
     def _finish(self, scene, bake):
         """Write the cache, then record stats: a bake that cannot be written changes nothing."""
         try:
@@ -176,6 +182,12 @@ class LUMEN_OT_bake(bpy.types.Operator):
     # -- synchronous (background mode, scripts) -------------------------------------------------
 
     def execute(self, context):
+        try:
+            return self._execute(context)
+        except Exception as exc:
+            return self._unexpected(exc)
+
+    def _execute(self, context):
         job = self._start(context)
         if job is None:
             return {'CANCELLED'}
@@ -187,6 +199,21 @@ class LUMEN_OT_bake(bpy.types.Operator):
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
             return self.execute(context)
+        try:
+            return self._invoke(context)
+        except Exception as exc:
+            self._abandon(context)
+            return self._unexpected(exc)
+
+    def modal(self, context, event):
+        try:
+            return self._modal(context, event)
+        except Exception as exc:
+            self._abandon(context)
+            return self._unexpected(exc)
+
+    def _invoke(self, context):
+        self._job, self._timer = None, None
         job = self._start(context)
         if job is None:
             return {'CANCELLED'}
@@ -200,7 +227,7 @@ class LUMEN_OT_bake(bpy.types.Operator):
         self._show(context, "starting")
         return {'RUNNING_MODAL'}
 
-    def modal(self, context, event):
+    def _modal(self, context, event):
         job = self._job
         if event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
             job.cancel.set()
@@ -217,9 +244,20 @@ class LUMEN_OT_bake(bpy.types.Operator):
 
     def cancel(self, context):
         """Blender is cancelling the operator (file load, quit): stop the worker, write nothing."""
-        self._job.cancel.set()
-        self._job.thread.join(timeout=10.0)
-        self._cleanup(context)
+        self._abandon(context)
+
+    def _abandon(self, context):
+        """Stop a running worker and release the timer, progress and status text."""
+        job = getattr(self, "_job", None)
+        if job is None:
+            return
+        job.cancel.set()
+        if job.thread.is_alive():
+            job.thread.join(timeout=10.0)
+        try:
+            self._cleanup(context)
+        except Exception:
+            traceback.print_exc()
 
     def _show(self, context, what):
         text = f"Lumen GI: baking {self._job.fraction:.0%}"
@@ -231,12 +269,13 @@ class LUMEN_OT_bake(bpy.types.Operator):
                 area.tag_redraw()
 
     def _cleanup(self, context):
-        RUNNING.pop(self._job.scene_name, None)
+        if RUNNING.get(self._job.scene_name) is self._job:
+            del RUNNING[self._job.scene_name]
         wm = context.window_manager
         if self._timer is not None:
             wm.event_timer_remove(self._timer)
             self._timer = None
-        wm.progress_end()
+            wm.progress_end()
         if context.workspace is not None:
             context.workspace.status_text_set(None)
         for area in context.screen.areas if context.screen else ():
