@@ -56,8 +56,8 @@ def narrow_band_distance(pairs: TrianglePairs, tri: np.ndarray, grid: Grid, limi
 
 
 def box_samples(lo: np.ndarray, hi: np.ndarray, shape, chunk: int = _PAIR_CHUNK):
-    """Yield (box ids, linear sample indices) for all samples in integer boxes [lo, hi] (inclusive,
-    per axis, clipped to the grid), in chunks of about `chunk` pairs."""
+    """Yield (box ids, (ix, iy, iz), linear indices, fraction done) for all samples in integer
+    boxes [lo, hi] (inclusive per axis, clipped to the grid), in chunks of about `chunk` pairs."""
     n = np.array(shape)
     lo = np.clip(lo, 0, n - 1).astype(np.int64)
     hi = np.clip(hi, 0, n - 1).astype(np.int64)
@@ -76,7 +76,7 @@ def box_samples(lo: np.ndarray, hi: np.ndarray, shape, chunk: int = _PAIR_CHUNK)
         ix = lo[bi, 0] + k % e[:, 0]
         iy = lo[bi, 1] + (k // e[:, 0]) % e[:, 1]
         iz = lo[bi, 2] + k // (e[:, 0] * e[:, 1])
-        yield bi, (ix * shape[1] + iy) * shape[2] + iz, float(csum[stop - 1]) / max(float(csum[-1]), 1.0)
+        yield bi, (ix, iy, iz), (ix * shape[1] + iy) * shape[2] + iz, float(csum[stop - 1]) / max(float(csum[-1]), 1.0)
         start = stop
 
 
@@ -99,12 +99,15 @@ def _seed(pairs, tri, grid, d2, closest, progress):
 
     lo = np.ceil((tri.min(axis=1) - h) / h)
     hi = np.floor((tri.max(axis=1) + h) / h)
-    centre32, radius32 = centre.astype(np.float32), radius.astype(np.float32)
-    for ti, lin, done in box_samples(lo, hi, grid.shape):
-        p = grid.coords(lin)
-        gap = np.sqrt(((p - centre32[ti]) ** 2).sum(axis=1)) - radius32[ti]
-        keep = gap * np.abs(gap) < np.minimum(d2[lin], np.float32(h * h))
-        _relax(pairs, p[keep], lin[keep], ti[keep], d2, closest)
+    cx, cy, cz = (centre[:, i].astype(np.float32) for i in range(3))
+    radius32, h32 = radius.astype(np.float32), np.float32(h)
+    for ti, (ix, iy, iz), lin, done in box_samples(lo, hi, grid.shape):
+        px, py, pz = ix * h32, iy * h32, iz * h32
+        dx, dy, dz = px - cx[ti], py - cy[ti], pz - cz[ti]
+        gap = np.sqrt(dx * dx + dy * dy + dz * dz) - radius32[ti]
+        keep = np.flatnonzero(gap * np.abs(gap) < np.minimum(d2[lin], h32 * h32))
+        pts = np.stack([px[keep], py[keep], pz[keep]], axis=1)
+        _relax(pairs, pts, lin[keep], ti[keep], d2, closest)
         if progress:
             progress(0.5 * done)
 

@@ -308,7 +308,7 @@ def _near_holes(grid, holes):
     mask = np.zeros(grid.shape, bool)
     reach = (radii + 2 * grid.h)[:, None]
     rel = centres - grid.origin
-    for loop, lin, _ in box_samples(np.floor((rel - reach) / grid.h), np.ceil((rel + reach) / grid.h), grid.shape):
+    for loop, _, lin, _ in box_samples(np.floor((rel - reach) / grid.h), np.ceil((rel + reach) / grid.h), grid.shape):
         d = np.linalg.norm(grid.coords(lin) - rel[loop], axis=1)
         mask.reshape(-1)[lin[d <= reach[loop, 0]]] = True
     return mask
