@@ -283,12 +283,22 @@ class LUMEN_OT_bake(bpy.types.Operator):
                 area.tag_redraw()
 
 
+@bpy.app.handlers.persistent
+def _forget_bakes(*_args):
+    """Another file is loaded: its scenes may share names with the old ones, so the last bakes
+    (which export writes) no longer belong to anything."""
+    LAST_BAKES.clear()
+
+
 def register():
     bpy.utils.register_class(LUMEN_OT_bake)
+    bpy.app.handlers.load_post.append(_forget_bakes)
 
 
 def unregister():
     for job in list(RUNNING.values()):
         job.cancel.set()
+    if _forget_bakes in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(_forget_bakes)
     bpy.utils.unregister_class(LUMEN_OT_bake)
     LAST_BAKES.clear()

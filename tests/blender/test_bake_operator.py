@@ -114,6 +114,10 @@ def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tm
         out["export_matches_cache"] = sorted(a.meshes) == sorted(b.meshes)
         out["box_x"] = [i.matrix_world[0][3] for i in b.instances if i.name == "Box"]
         out["status"] = scene.lumen.last_status
+        from lumen_gi.operators.bake_op import LAST_BAKES
+        out["remembered"] = sorted(LAST_BAKES)
+        empty_scene()                           # another file: its "Scene" is not this one
+        out["forgotten"] = sorted(LAST_BAKES)
         emit(**out)
     """)
     r = res.result
@@ -125,6 +129,7 @@ def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tm
     assert r["export_matches_cache"]
     assert r["box_x"] == [5.0]
     assert r["status"].startswith("Exported 2 objects") and str(exp2) in r["status"]
+    assert r["remembered"] == ["Scene"] and r["forgotten"] == []
 
 
 def test_relative_cache_dir_goes_to_temp_when_unsaved_and_next_to_saved_blend(blender, tmp_path):
