@@ -52,9 +52,16 @@ def test_install_enable_and_bake(extension_zip, blender, tmp_path):
         scene.lumen.voxel_density = 4.0
         scene.lumen.cache_dir = {str(tmp_path / "cache")!r}
         baked = sorted(bpy.ops.lumen.bake())
-        emit(install=sorted(result), enabled=enabled, file=module.__file__,
-             wheel_installed=os.path.isdir(os.path.join(site, "embreex")),
-             baked=baked, objects=scene.lumen.last_objects, status=scene.lumen.last_status)
+        status, objects = scene.lumen.last_status, scene.lumen.last_objects
+        wheel_installed = os.path.isdir(os.path.join(site, "embreex"))
+        bpy.ops.preferences.addon_disable(module="bl_ext.user_default.lumen_gi")
+        unregistered = not any(hasattr(t, n) for t, n in (
+            (bpy.types.Scene, "lumen"), (bpy.types.Object, "lumen"), (bpy.types, "LUMEN_OT_bake"),
+            (bpy.types, "LUMEN_OT_export_cache"), (bpy.types, "VIEW3D_PT_lumen")))
+        emit(unregistered=unregistered, install=sorted(result), enabled=enabled, file=module.__file__,
+             wheel_installed=wheel_installed,
+             wheel_removed=not os.path.isdir(os.path.join(site, "embreex")),
+             baked=baked, objects=objects, status=status)
     """, load_addon=False)
     r = res.result
     assert r["install"] == ["FINISHED"] and r["enabled"]
@@ -62,3 +69,5 @@ def test_install_enable_and_bake(extension_zip, blender, tmp_path):
     assert r["wheel_installed"], "the bundled embreex wheel was not installed"
     assert r["baked"] == ["FINISHED"] and r["objects"] == 1, r["status"]
     assert (tmp_path / "cache" / "manifest.json").is_file()
+    assert r["unregistered"], "disabling the add-on left its properties or operators behind"
+    assert r["wheel_removed"], "Blender keeps the wheels of disabled extensions; expected removal"
