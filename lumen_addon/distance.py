@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import TrianglePairs
+from .parallel import map_slices
 
 _PAIR_CHUNK = 3_000_000
 
@@ -114,7 +115,8 @@ def _seed(pairs, tri, grid, d2, closest, progress):
 
 def _relax(pairs, pts, lin, ti, d2, closest):
     """d2[lin] = min(d2[lin], dist2(pts, ti)); record the winning triangle. Returns improved lin."""
-    dd = pairs.distance_sq(pts, ti).astype(np.float32)
+    dd = np.concatenate(map_slices(lambda sl: pairs.distance_sq(pts[sl], ti[sl]), len(ti)))
+    dd = dd.astype(np.float32, copy=False)
     old = d2[lin]
     np.minimum.at(d2, lin, dd)
     win = (dd < old) & (dd == d2[lin])
