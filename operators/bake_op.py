@@ -13,7 +13,7 @@ from pathlib import Path
 import bpy
 
 from ..lumen_addon.bake import BakeCancelled, BakeSettings, SceneBakeError, bake_scene
-from ..lumen_addon.cache import CacheError, write_cache
+from ..lumen_addon.cache import CacheError, read_cache, write_cache
 from .extract import extract_objects
 from .properties import INT_MAX
 
@@ -73,10 +73,23 @@ def record_bake(scene, bake, status: str):
     LAST_BAKES[scene.name] = bake
 
 
+def previous_bake(scene):
+    """What the next bake may reuse: the last bake in memory, else the scene's cache on disk
+    (a reopened file re-bakes only what changed). Reuse is by content hash, so a stale or
+    foreign cache can only cost time, never a wrong result; an unreadable one is ignored."""
+    bake = LAST_BAKES.get(scene.name)
+    if bake is None:
+        try:
+            bake = read_cache(resolve_folder(scene.lumen.cache_dir))
+        except Exception:
+            bake = None
+    return bake
+
+
 def bake_now(context, scene):
     """Extract and bake synchronously (raises SceneBakeError and friends)."""
     objects = extract_objects(context.evaluated_depsgraph_get())
-    return bake_scene(objects, settings_from(scene), previous=LAST_BAKES.get(scene.name))
+    return bake_scene(objects, settings_from(scene), previous=previous_bake(scene))
 
 
 class _Job:
@@ -163,7 +176,7 @@ class LUMEN_OT_bake(bpy.types.Operator):
         except Exception as exc:
             self._fail(scene, exc)
             return None
-        return _Job(scene.name, objects, settings_from(scene), LAST_BAKES.get(scene.name))
+        return _Job(scene.name, objects, settings_from(scene), previous_bake(scene))
 
     def _conclude(self, job):
         """Turn a finished job into the cache, stats and reports (both execute and modal)."""

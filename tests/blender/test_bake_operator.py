@@ -119,6 +119,12 @@ def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tm
         empty_scene()                           # another file: its "Scene" is not this one
         out["forgotten"] = sorted(LAST_BAKES)
         emit(**out)
+
+        # A reopened file has no bake in memory: the cache on disk seeds the reuse.
+        scene = empty_scene(cache_dir={str(cache)!r})
+        cube("Box"); sphere("Ball", location=(2, 0, 0)); cube("New", size=0.5, location=(0, 3, 0))
+        emit(reopened=bake(), reused_from_disk=scene.lumen.last_reused,
+             unique_after_reopen=scene.lumen.last_unique_meshes)
     """)
     r = res.result
     for key in ("export1", "bake1", "bake2", "bake3", "bake4", "export2"):
@@ -130,6 +136,10 @@ def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tm
     assert r["box_x"] == [5.0]
     assert r["status"].startswith("Exported 2 objects") and str(exp2) in r["status"]
     assert r["remembered"] == ["Scene"] and r["forgotten"] == []
+    # Box is unchanged, New is new, and Ball's resolution scale is back to 1: the cache on disk
+    # holds the scale-2 Ball only, so 1 of 3 meshes is reused.
+    assert r["reopened"] == [["FINISHED"], None]
+    assert r["unique_after_reopen"] == 3 and r["reused_from_disk"] == 1
 
 
 def test_relative_cache_dir_goes_to_temp_when_unsaved_and_next_to_saved_blend(blender, tmp_path):
