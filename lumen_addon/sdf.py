@@ -175,12 +175,11 @@ def plan_resolution(extent, voxel_density: float, resolution_scale: float, max_r
 
     h = 1.0 / (voxel_density * resolution_scale)
     longest = float(extent.max())
-    if longest / h > 1e7:   # would overflow the integer maths long before the clamp
-        requested = (10 ** 7,) * 3
-    else:
-        requested = cells(h)
+    # What was asked for, for the clamp message (float maths: a silly request must not overflow).
+    asked = np.minimum(np.ceil(extent / h - 1e-9) + 2 * MARGIN_VOXELS, 1e15)
+    requested = tuple(int(x) for x in -(-asked // BRICK_CELLS) * BRICK_CELLS)
     cap = max_resolution // BRICK_CELLS * BRICK_CELLS
-    if max(requested) > cap:
+    if max(requested) > cap or not (longest / h < 1e15):
         h = longest / (cap - 2 * MARGIN_VOXELS)
     return h, cells(h), requested
 

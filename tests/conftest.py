@@ -10,10 +10,6 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 
-def shared_mesh_names():
-    return sorted(p.stem for p in SHARED_MESHES.glob("*.obj")) if SHARED_MESHES.is_dir() else []
-
-
 @pytest.fixture
 def shared_mesh():
     def load(name):

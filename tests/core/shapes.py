@@ -1,5 +1,14 @@
 """Test meshes built in code, each with its exact answer where one exists."""
+from pathlib import Path
+
 import numpy as np
+
+SHARED_MESHES = Path(__file__).resolve().parents[2].parent / "shared" / "meshes"
+
+
+def shared_mesh_names():
+    """Names of the shared test meshes beside the checkout (empty when they are absent)."""
+    return sorted(p.stem for p in SHARED_MESHES.glob("*.obj")) if SHARED_MESHES.is_dir() else []
 
 
 def grid_surface(f, nu, nv, wrap_u=True, wrap_v=True):

@@ -4,11 +4,11 @@ import math
 import numpy as np
 import pytest
 
-from conftest import shared_mesh_names
 from lumen_addon import sdf
 from lumen_addon.geometry import boundary_loops, brute_force_distance, clean_mesh, winding_number
 
 import shapes
+from shapes import shared_mesh_names
 
 RNG_SEED = 7
 
