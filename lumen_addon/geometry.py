@@ -83,37 +83,46 @@ class TrianglePairs:
 
     def distance_sq(self, points: np.ndarray, tri_index: np.ndarray) -> np.ndarray:
         """Squared distance from points[i] (origin-relative) to triangle tri_index[i]."""
-        r = self.rows[:, tri_index]
+        rows = self.rows
+        # Gather only what each step needs: barycentrics for all pairs, the normal for pairs that
+        # project inside, edge lengths for the rest (gathers are most of the memory traffic).
+        r = rows[:9, tri_index]
+        g = rows[12:15, tri_index]
         px, py, pz = points[:, 0] - r[0], points[:, 1] - r[1], points[:, 2] - r[2]
         x0 = px * r[3] + py * r[4] + pz * r[5]          # ap . ab
         x1 = px * r[6] + py * r[7] + pz * r[8]          # ap . ac
-        v = r[12] * x0 + r[13] * x1                     # barycentric weight of b
-        w = r[13] * x0 + r[14] * x1                     # barycentric weight of c
+        v = g[0] * x0 + g[1] * x1                       # barycentric weight of b
+        w = g[1] * x0 + g[2] * x1                       # barycentric weight of c
         u = 1.0 - v - w
-        plane = px * r[9] + py * r[10] + pz * r[11]
-        d2 = plane * plane
-        out = np.flatnonzero((u < 0) | (v < 0) | (w < 0))
+        outside = (u < 0) | (v < 0) | (w < 0)
+        d2 = np.empty(len(tri_index), dtype=px.dtype)
+        ins = np.flatnonzero(~outside)
+        if ins.size:
+            n = rows[9:12, tri_index[ins]]
+            plane = px[ins] * n[0] + py[ins] * n[1] + pz[ins] * n[2]
+            d2[ins] = plane * plane
+        out = np.flatnonzero(outside)
         if out.size:
             # Outside the triangle the closest point is on an edge whose barycentric is negative:
             # one such edge, or two sharing the vertex between them.
-            ro, uo, vo, wo = r[:, out], u[out], v[out], w[out]
+            ro = r[3:9, out]
+            inv_len = rows[15:18, tri_index[out]]
+            uo, vo, wo = u[out], v[out], w[out]
             p = np.stack([px[out], py[out], pz[out]])
-            ab, ac = ro[3:6], ro[6:9]
+            ab, ac = ro[0:3], ro[3:6]
             first_bc = uo < 0
             first_ac = ~first_bc & (vo < 0)
             start = np.where(first_bc, ab, 0.0)
             direc = np.where(first_bc, ac - ab, np.where(first_ac, ac, ab))
-            inv = np.where(first_bc, ro[17], np.where(first_ac, ro[16], ro[15]))
+            inv = np.where(first_bc, inv_len[2], np.where(first_ac, inv_len[1], inv_len[0]))
             e = _segment_dist_sq(p - start, direc, inv)
-            # Second edge for vertex regions (two negative barycentrics).
             two = np.flatnonzero(((uo < 0) & ((vo < 0) | (wo < 0))) | ((vo < 0) & (wo < 0)))
             if two.size:
                 # Vertex C (u<0, v<0): BC then AC. Vertex B (u<0, w<0): BC then AB.
                 # Vertex A (v<0, w<0): AC then AB. The second edge always starts at a.
-                sub = ro[:, two]
                 use_ac = (uo[two] < 0) & (vo[two] < 0)
-                direc2 = np.where(use_ac, sub[6:9], sub[3:6])
-                inv2 = np.where(use_ac, sub[16], sub[15])
+                direc2 = np.where(use_ac, ac[:, two], ab[:, two])
+                inv2 = np.where(use_ac, inv_len[1, two], inv_len[0, two])
                 e[two] = np.minimum(e[two], _segment_dist_sq(p[:, two], direc2, inv2))
             d2[out] = e
         return d2

@@ -134,5 +134,8 @@ def flood_signs(sign: np.ndarray, udf: np.ndarray, h: float, todo: np.ndarray, b
                 s = flat_s[nb]
                 safe = (s != 0) & (d[ok] + flat_d[nb] > limit) & ~flat_b[nb]
                 flat_s[todo[ok][safe]] = s[safe]
-        todo = todo[flat_s[todo] == 0]
+        left = todo[flat_s[todo] == 0]
+        if len(left) == len(todo):
+            break      # nothing moved: the rest is cut off by the surface, rays decide it
+        todo = left
     return np.concatenate([stuck, todo])
