@@ -10,15 +10,19 @@ from __future__ import annotations
 import hashlib
 import time
 from dataclasses import asdict, dataclass, field
+from typing import Optional
 
 import numpy as np
 
 from . import __version__
+from . import cards as cardlib
+from .atlas import Atlas, build_atlas
 from .geometry import MeshError, clean_mesh
 from .sdf import DEFAULT_MAX_RESOLUTION, BakeCancelled, MeshSDF, bake_mesh_sdf, plan_resolution
 from .sign import INSIDE_FRACTION
 
-ALGORITHM_VERSION = 1   # bump when a change makes old bakes differ from new ones
+ALGORITHM_VERSION = 2   # bump when a change makes old bakes differ from new ones
+SDF_SHARE = 0.7         # of the progress bar; the cards take the rest
 
 
 @dataclass(frozen=True)
@@ -26,6 +30,9 @@ class BakeSettings:
     voxel_density: float = 20.0          # voxels per metre at resolution scale 1
     max_resolution: int = DEFAULT_MAX_RESOLUTION
     inside_fraction: float = INSIDE_FRACTION
+    texel_density: float = 20.0          # card texels per metre of world size (UE: about 20)
+    texel_budget: int = 2048 * 2048      # all cards of the scene together
+    max_cards: int = 32                  # per mesh (UE: 12 by default, 32 at most)
 
 
 @dataclass
@@ -36,31 +43,43 @@ class ObjectInput:
     matrix_world: np.ndarray = field(default_factory=lambda: np.eye(4))
     two_sided: bool = False
     resolution_scale: float = 1.0
+    # Surface attributes for the mesh cards (all optional):
+    normals: Optional[np.ndarray] = None       # (T, 3, 3) per-corner normals, local space
+    uvs: Optional[np.ndarray] = None           # (T, 3, 2) per-corner UVs of the texture UV map
+    material_ids: Optional[np.ndarray] = None  # (T,) index into `materials`
+    materials: list = field(default_factory=list)   # [materials.Material]; empty: plain grey
 
 
 @dataclass
 class Instance:
     name: str
-    mesh: str                            # content hash of its mesh
+    mesh: str                            # content hash of its mesh's SDF
     matrix_world: np.ndarray
+    cards: str = ""                      # content hash of its mesh's cards
 
 
 @dataclass
 class SceneBake:
     settings: BakeSettings
-    meshes: dict                         # hash -> MeshSDF
+    meshes: dict                         # SDF hash -> MeshSDF
     instances: list                      # [Instance]
     seconds: float = 0.0
     reused: int = 0                      # unique meshes taken from a previous bake
     warnings: list = field(default_factory=list)
+    cards: dict = field(default_factory=dict)   # cards hash -> cards.MeshCards
+    atlas: Optional[Atlas] = None
 
     def stats(self) -> dict:
         """Totals for the N-panel and the manifest (mip 0 + all mips bytes)."""
         bricks = sum(s["bricks_kept"] for m in self.meshes.values() for s in m.stats())
         nbytes = sum(s["bytes"] for m in self.meshes.values() for s in m.stats())
+        cover = [mc.coverage for mc in self.cards.values()]
         return {"objects": len(self.instances), "unique_meshes": len(self.meshes),
                 "bricks": int(bricks), "bytes": int(nbytes), "seconds": round(self.seconds, 3),
-                "reused": self.reused}
+                "reused": self.reused, "cards": sum(len(mc.cards) for mc in self.cards.values()),
+                "texels": sum(mc.texels for mc in self.cards.values()),
+                "coverage": round(min(cover), 4) if cover else 0.0,
+                "atlas": list(self.atlas.size) if self.atlas is not None else [0, 0]}
 
 
 class SceneBakeError(ValueError):
@@ -79,8 +98,27 @@ def mesh_hash(obj: ObjectInput, settings: BakeSettings) -> str:
     for arr in (v, t):
         h.update(str(arr.shape).encode())
         h.update(arr.tobytes())
-    h.update(repr((bool(obj.two_sided), float(obj.resolution_scale), asdict(settings),
+    sdf_settings = (settings.voxel_density, settings.max_resolution, settings.inside_fraction)
+    h.update(repr((bool(obj.two_sided), float(obj.resolution_scale), sdf_settings,
                    ALGORITHM_VERSION)).encode())
+    return h.hexdigest()[:20]
+
+
+def world_scale(matrix) -> float:
+    """Largest axis scale of a 4x4 world matrix: card texels are per metre of world size."""
+    return float(np.linalg.norm(np.asarray(matrix, float)[:3, :3], axis=0).max())
+
+
+def cards_hash(obj: ObjectInput, sdf_key: str, settings: BakeSettings) -> str:
+    """Content hash of everything that changes a mesh's cards: geometry (via the SDF key),
+    surface attributes, materials, card settings and the world scale (texels per metre)."""
+    h = hashlib.sha1(sdf_key.encode())
+    for arr in (obj.normals, obj.uvs, obj.material_ids):
+        h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())
+    for m in obj.materials:
+        h.update(m.digest())
+    h.update(repr((settings.texel_density, settings.max_cards,
+                   round(world_scale(obj.matrix_world), 6), ALGORITHM_VERSION)).encode())
     return h.hexdigest()[:20]
 
 
@@ -95,7 +133,7 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
     objects = list(objects)
     if not objects:
         raise SceneBakeError([("scene", "no visible mesh objects to bake")])
-    problems, instances, todo = [], [], {}
+    problems, instances, todo, card_todo = [], [], {}, {}
     for obj in objects:
         m = np.asarray(obj.matrix_world, dtype=np.float64)
         if m.shape != (4, 4) or not np.isfinite(m).all():
@@ -110,15 +148,20 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
             problems.append((obj.name, str(exc)))
             continue
         key = mesh_hash(obj, settings)
-        instances.append(Instance(obj.name, key, m))
+        ckey = cards_hash(obj, key, settings)
+        instances.append(Instance(obj.name, key, m, ckey))
         todo.setdefault(key, obj)
+        card_todo.setdefault(ckey, obj)
     if problems:
         raise SceneBakeError(problems)
+    for name, value in (("texel density", settings.texel_density), ("texel budget", settings.texel_budget)):
+        if not (np.isfinite(value) and value > 0):
+            raise SceneBakeError([("scene", f"{name} must be a positive number, got {value!r}")])
 
     meshes, warnings, reused = {}, [], 0
-    old = previous.meshes if previous is not None and previous.settings == settings else {}
+    old = previous.meshes if previous is not None else {}
     cost = {k: max(len(o.triangles), 1) ** 0.5 for k, o in todo.items() if k not in old}
-    total, done = sum(cost.values()) or 1.0, 0.0
+    total, done = (sum(cost.values()) or 1.0) / SDF_SHARE, 0.0
     for key, obj in todo.items():
         if key in old:
             meshes[key], reused = old[key], reused + 1
@@ -141,9 +184,45 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
             warnings.append((obj.name, f"{sdf.dropped_degenerate} zero-area faces ignored"))
         meshes[key] = sdf
         done += span
+    cards = _bake_cards(card_todo, settings, previous, warnings,
+                        lambda f, name: progress(done + (1.0 - done) * f, name) if progress else None)
+    atlas = build_atlas(cards)
     if progress:
         progress(1.0, "")
-    return SceneBake(settings, meshes, instances, time.perf_counter() - start, reused, warnings)
+    return SceneBake(settings, meshes, instances, time.perf_counter() - start, reused, warnings,
+                     cards, atlas)
+
+
+def _bake_cards(todo: dict, settings: BakeSettings, previous, warnings, progress) -> dict:
+    """Cards of every unique (mesh, materials, scale): place all, fit the texel budget, capture."""
+    old = previous.cards if previous is not None else {}
+    out = {k: old[k] for k in todo if k in old}
+    new = {}
+    for key, obj in todo.items():
+        if key in out:
+            continue
+        progress(0.3 * len(new) / max(len(todo), 1), obj.name)
+        surface, attrs, notes = cardlib.prepare(obj.vertices, obj.triangles, obj.normals, obj.uvs,
+                                                obj.material_ids, obj.materials)
+        warnings.extend((obj.name, n) for n in notes)
+        placed = cardlib.place_cards(surface, max_cards=settings.max_cards)
+        new[key] = (obj, surface, attrs, placed, settings.texel_density * world_scale(obj.matrix_world))
+    kept = sum(mc.texels for mc in out.values())
+    for _, _, _, placed, density in new.values():
+        cardlib.set_resolution(placed, density)
+    wanted = sum(c.resolution[0] * c.resolution[1] for *_, placed, _ in new.values() for c in placed)
+    if wanted and kept + wanted > settings.texel_budget:
+        f = float(np.sqrt(max(settings.texel_budget - kept, 0) / wanted))
+        for _, _, _, placed, density in new.values():
+            cardlib.set_resolution(placed, density * f)
+        warnings.append(("scene", f"{kept + wanted:,} card texels exceed the budget of "
+                                  f"{settings.texel_budget:,}: new cards scaled to {100 * f:.0f}% "
+                                  f"resolution (4 texels per side at least)"))
+    for n, (key, (obj, surface, attrs, placed, _)) in enumerate(new.items()):
+        progress(0.3 + 0.7 * n / len(new), obj.name)
+        cardlib.capture(surface, placed, **attrs)
+        out[key] = cardlib.finish(surface, placed, [])
+    return out
 
 
 __all__ = ["BakeSettings", "ObjectInput", "Instance", "SceneBake", "SceneBakeError", "BakeCancelled",

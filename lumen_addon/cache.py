@@ -19,11 +19,12 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
+from .atlas import LAYERS, PADDING, Atlas, split_atlas
 from .bake import BakeSettings, Instance, SceneBake
 from .sdf import BAND_VOXELS, BRICK, BRICK_CELLS, INVALID_INSIDE, MeshSDF, SDFMip
 
 FORMAT = "lumen-gi-cache"
-VERSION = 1
+VERSION = 2
 MANIFEST = "manifest.json"
 
 
@@ -65,28 +66,81 @@ def write_cache(folder, bake: SceneBake) -> Path:
         "units": "metres", "axes": "arrays are indexed [x, y, z]",
         "settings": {"voxel_density": bake.settings.voxel_density,
                      "max_resolution": bake.settings.max_resolution,
-                     "inside_fraction": bake.settings.inside_fraction},
+                     "inside_fraction": bake.settings.inside_fraction,
+                     "texel_density": bake.settings.texel_density,
+                     "texel_budget": bake.settings.texel_budget,
+                     "max_cards": bake.settings.max_cards},
         "sdf": {"brick_size": BRICK, "brick_cells": BRICK_CELLS, "band_voxels": BAND_VOXELS,
                 "encoding": "uint8 code c -> distance (c - 127.5) / 127.5 * band",
                 "invalid_outside": -1, "invalid_inside": INVALID_INSIDE,
                 "file": npz_name, "sha256": digest, "size": len(payload)},
         "meshes": meshes,
-        "instances": [{"object": x.name, "mesh": x.mesh,
+        "instances": [{"object": x.name, "mesh": x.mesh, "cards": x.cards,
                        "matrix_world": np.asarray(x.matrix_world).tolist()} for x in bake.instances],
         "stats": bake.stats(),
     }
     try:
         _atomic_write(folder / npz_name, payload)
+        keep = {npz_name}
+        if bake.atlas is not None and bake.atlas.table:
+            manifest["atlas"] = _write_atlas(folder, bake)
+            keep |= {e["file"] for e in manifest["atlas"]["layers"].values()}
         _atomic_write(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
     except OSError as exc:
         raise CacheError(f"cannot write cache in {folder}: {exc.strerror or exc}") from exc
-    for stale in folder.glob("sdf-*.npz"):
-        if stale.name != npz_name:
+    for stale in [*folder.glob("sdf-*.npz"), *folder.glob("atlas-*")]:
+        if stale.name not in keep:
             try:
                 stale.unlink()
             except OSError:
                 pass   # an old file left behind is harmless: no manifest names it
     return folder / MANIFEST
+
+
+def _write_atlas(folder: Path, bake: SceneBake) -> dict:
+    """Each layer as a float EXR, albedo also as an sRGB PNG; content-named, atomically."""
+    atlas = bake.atlas
+    layers = {}
+    srgb = np.where(atlas.layers["albedo"] <= 0.0031308, atlas.layers["albedo"] * 12.92,
+                    1.055 * np.power(np.clip(atlas.layers["albedo"], 0.0031308, None), 1 / 2.4) - 0.055)
+    images = [(name, "exr", atlas.layers[name]) for name in LAYERS]
+    images.append(("albedo_srgb", "png", np.clip(np.rint(srgb * 255), 0, 255).astype(np.uint8)))
+    for name, ext, data in images:
+        digest, size = _write_image(folder, name.replace("_", "-"), ext, data)
+        layers[name] = {"file": f"atlas-{name.replace('_', '-')}-{digest[:16]}.{ext}", "sha256": digest,
+                        "size": size, "channels": int(data.shape[2]),
+                        "type": "uint8 sRGB" if ext == "png" else "float32 linear"}
+    return {"size": list(atlas.size), "padding": PADDING, "layers": layers,
+            "cards": atlas.table,
+            "coverage": {key: mc.coverage for key, mc in bake.cards.items()},
+            "texel_origin": "card texel (i, j) = atlas pixel [rect.y + j, rect.x + i]; row 0 is "
+                            "the first scanline of the files; u along x, v along y"}
+
+
+def _write_image(folder: Path, stem: str, ext: str, data: np.ndarray):
+    import OpenImageIO as oiio
+
+    fd, tmp = tempfile.mkstemp(prefix=f".atlas-{stem}.", suffix=f".{ext}", dir=folder)
+    os.close(fd)
+    try:
+        fmt = oiio.UINT8 if data.dtype == np.uint8 else oiio.FLOAT
+        spec = oiio.ImageSpec(int(data.shape[1]), int(data.shape[0]), int(data.shape[2]), fmt)
+        if ext == "exr":
+            spec.attribute("compression", "zip")
+        out = oiio.ImageOutput.create(tmp)
+        if out is None or not out.open(tmp, spec) or not out.write_image(np.ascontiguousarray(data)):
+            raise OSError(f"OpenImageIO could not write {tmp}: {oiio.geterror()}")
+        out.close()
+        payload = Path(tmp).read_bytes()
+        digest = hashlib.sha256(payload).hexdigest()
+        os.replace(tmp, folder / f"atlas-{stem}-{digest[:16]}.{ext}")
+        return digest, len(payload)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
 
 
 def _atomic_write(path: Path, data: bytes):
@@ -172,6 +226,10 @@ def _decode(manifest, folder: Path) -> SceneBake:
             origin=np.array(m["origin"], float), bounds_min=np.array(m["bounds_min"], float),
             bounds_max=np.array(m["bounds_max"], float), two_sided=bool(m["two_sided"]),
             mips=mips, requested_resolution=tuple(m["requested_resolution"]))
+    atlas, cards = None, {}
+    if "atlas" in manifest:
+        atlas = _read_atlas(folder, manifest["atlas"])
+        cards = split_atlas(atlas, manifest["atlas"]["coverage"])
     instances = []
     for x in manifest["instances"]:
         if x["mesh"] not in meshes:
@@ -179,9 +237,45 @@ def _decode(manifest, folder: Path) -> SceneBake:
         mat = np.array(x["matrix_world"], float)
         if mat.shape != (4, 4):
             raise CacheError(f"{folder / MANIFEST}: instance {x['object']!r} matrix is not 4x4")
-        instances.append(Instance(str(x["object"]), x["mesh"], mat))
+        instances.append(Instance(str(x["object"]), x["mesh"], mat, str(x.get("cards", ""))))
     s = manifest["settings"]
     settings = BakeSettings(float(s["voxel_density"]), int(s["max_resolution"]),
-                            float(s["inside_fraction"]))
+                            float(s["inside_fraction"]), float(s["texel_density"]),
+                            int(s["texel_budget"]), int(s["max_cards"]))
     stats = manifest.get("stats", {})
-    return SceneBake(settings, meshes, instances, float(stats.get("seconds", 0.0)))
+    return SceneBake(settings, meshes, instances, float(stats.get("seconds", 0.0)),
+                     cards=cards, atlas=atlas)
+
+
+def _read_atlas(folder: Path, info: dict) -> Atlas:
+    import OpenImageIO as oiio
+
+    width, height = (int(x) for x in info["size"])
+    layers = {}
+    for name, channels in LAYERS.items():
+        entry = info["layers"][name]
+        path = folder / str(entry["file"])
+        if Path(entry["file"]).name != entry["file"]:
+            raise CacheError(f"{folder / MANIFEST}: atlas file name {entry['file']!r} leaves the folder")
+        try:
+            payload = path.read_bytes()
+        except OSError as exc:
+            raise CacheError(f"{path}: cannot read ({exc.strerror or exc})") from exc
+        if len(payload) != entry["size"] or hashlib.sha256(payload).hexdigest() != entry["sha256"]:
+            raise CacheError(f"{path}: truncated or modified (size/checksum differ from the manifest)")
+        inp = oiio.ImageInput.open(str(path))
+        if inp is None:
+            raise CacheError(f"{path}: not a readable image ({oiio.geterror()})")
+        try:
+            data = inp.read_image(format=oiio.FLOAT)
+        finally:
+            inp.close()
+        if data is None or data.shape != (height, width, channels):
+            raise CacheError(f"{path}: image is {getattr(data, 'shape', None)}, manifest says "
+                             f"{(height, width, channels)}")
+        layers[name] = np.ascontiguousarray(data, dtype=np.float32)
+    for e in info["cards"]:
+        x, y, w, h = e["rect"]
+        if x < 0 or y < 0 or x + w > width or y + h > height:
+            raise CacheError(f"{folder / MANIFEST}: a card of mesh {e['mesh']} lies outside the atlas")
+    return Atlas((width, height), layers, list(info["cards"]))

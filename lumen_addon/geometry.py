@@ -21,6 +21,7 @@ class CleanMesh:
     vertices: np.ndarray
     triangles: np.ndarray
     dropped_degenerate: int
+    kept: np.ndarray           # indices of the input triangles that were kept
 
 
 def clean_mesh(vertices, triangles) -> CleanMesh:
@@ -54,7 +55,7 @@ def clean_mesh(vertices, triangles) -> CleanMesh:
     keep = area2 > (extent * extent * 1e-12) ** 2
     if not keep.any():
         raise MeshError("every face is degenerate (zero area)")
-    return CleanMesh(v, t[keep], int((~keep).sum()))
+    return CleanMesh(v, t[keep], int((~keep).sum()), np.flatnonzero(keep))
 
 
 class TrianglePairs:

@@ -87,3 +87,13 @@ def surface_samples(v, f, n, rng):
     r1, r2 = np.sqrt(rng.random(n)), rng.random(n)
     t = tri[idx]
     return t[:, 0] * (1 - r1)[:, None] + t[:, 1] * (r1 * (1 - r2))[:, None] + t[:, 2] * (r1 * r2)[:, None]
+
+
+def room_with_pillar(half=(3.0, 2.0, 1.5), pillar=(0.3, 0.3, 1.5)):
+    """One mesh: a closed room whose walls face inwards (seen from inside) and a pillar in it
+    from floor to ceiling, facing outwards. The six bounds cards see none of it from outside."""
+    rv, rf = box(half)
+    rf = rf[:, ::-1]                       # flip: normals point into the room
+    pv, pf = box(pillar)
+    pv = pv + np.array([0.8, 0.4, 0.0])
+    return np.concatenate([rv, pv]), np.concatenate([rf, pf + len(rv)])

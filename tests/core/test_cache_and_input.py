@@ -9,6 +9,7 @@ import shapes
 from lumen_addon.bake import BakeSettings, ObjectInput, SceneBakeError, bake_scene
 from lumen_addon.cache import MANIFEST, CacheError, read_cache, write_cache
 from lumen_addon.geometry import MeshError
+from lumen_addon.materials import Material
 from lumen_addon.sdf import BakeCancelled, bake_mesh_sdf
 
 
@@ -16,8 +17,9 @@ from lumen_addon.sdf import BakeCancelled, bake_mesh_sdf
 def scene_bake():
     sv, sf = shapes.icosphere(0.5, 3)
     bv, bf = shapes.box()
+    glow = Material(base_color=(0.9, 0.2, 0.1), emission_color=(1, 1, 1), emission_strength=3.0)
     objs = [ObjectInput("Sphere", sv, sf), ObjectInput("Sphere.001", sv, sf, np.diag([2.0, 2, 2, 1])),
-            ObjectInput("Box", bv, bf, two_sided=True)]
+            ObjectInput("Box", bv, bf, two_sided=True, materials=[glow])]
     return bake_scene(objs, BakeSettings(voxel_density=16))
 
 
@@ -34,6 +36,17 @@ def assert_same(a, b):
             assert la.voxel_size == lb.voxel_size and la.resolution == lb.resolution
             assert np.array_equal(la.indirection, lb.indirection)
             assert np.array_equal(la.bricks, lb.bricks)
+    assert a.cards.keys() == b.cards.keys() and [i.cards for i in a.instances] == [i.cards for i in b.instances]
+    for k in a.cards:
+        assert a.cards[k].coverage == b.cards[k].coverage
+        for ca, cb in zip(a.cards[k].cards, b.cards[k].cards, strict=True):
+            assert (ca.axis, ca.resolution, ca.near, ca.far) == (cb.axis, cb.resolution, cb.near, cb.far)
+            assert np.array_equal(ca.rect_min, cb.rect_min) and np.array_equal(ca.rect_max, cb.rect_max)
+            for name in ("albedo", "normal", "depth", "emissive", "opacity"):
+                assert np.array_equal(getattr(ca, name), getattr(cb, name)), name
+    if a.atlas is not None:
+        for name, layer in a.atlas.layers.items():
+            assert np.array_equal(layer, b.atlas.layers[name])
 
 
 def test_instances_share_one_bake(scene_bake):
@@ -67,6 +80,17 @@ def _damaged(tmp_path, scene_bake, damage):
     with pytest.raises(CacheError) as err:
         read_cache(folder)
     return str(err.value)
+
+
+def test_truncated_or_missing_atlas_image(tmp_path, scene_bake):
+    def cut(folder):
+        exr = next(folder.glob("atlas-normal-*.exr"))
+        exr.write_bytes(exr.read_bytes()[:200])
+    assert "atlas-normal" in _damaged(tmp_path, scene_bake, cut)
+
+    def gone(folder):
+        next(folder.glob("atlas-depth-*.exr")).unlink()
+    assert "atlas-depth" in _damaged(tmp_path / "2", scene_bake, gone)
 
 
 def test_truncated_arrays(tmp_path, scene_bake):

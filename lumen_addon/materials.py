@@ -1,0 +1,82 @@
+"""Materials as plain arrays, and their evaluation at surface hits (bilinear, wrapping textures).
+
+`operators/` turns Blender materials into these: a Principled BSDF's Base Color and Emission
+(value, or an Image Texture linked directly), else the material's viewport display colour, as
+Workbench does. Colours are linear RGB. Textures are float32 (H, W, C) arrays with row 0 at
+v = 0 (Blender's pixel order) and wrap in both directions (Blender's default "Repeat").
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
+
+
+@dataclass
+class Material:
+    name: str = "default"
+    base_color: tuple = DEFAULT_ALBEDO            # linear RGB, used when there is no texture
+    base_color_texture: Optional[np.ndarray] = None
+    emission_color: tuple = (0.0, 0.0, 0.0)       # linear RGB, multiplied by the strength
+    emission_strength: float = 0.0
+    emission_texture: Optional[np.ndarray] = None
+
+    def digest(self) -> bytes:
+        """Content hash input (textures included), for re-baking only what changed."""
+        h = hashlib.sha1(repr((self.name, tuple(map(float, self.base_color)),
+                               tuple(map(float, self.emission_color)),
+                               float(self.emission_strength))).encode())
+        for tex in (self.base_color_texture, self.emission_texture):
+            if tex is None:
+                h.update(b"-")
+            else:
+                a = np.ascontiguousarray(tex, dtype=np.float32)
+                h.update(str(a.shape).encode())
+                h.update(a.tobytes())
+        return h.digest()
+
+
+def sample_texture(tex: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup with wrapping; texel centres at (i + 0.5) / size. Returns (N, 3) RGB."""
+    t = np.asarray(tex, np.float32)
+    if t.ndim == 2:
+        t = t[:, :, None]
+    h, w = t.shape[:2]
+    x = np.asarray(uv[:, 0], np.float64) * w - 0.5
+    y = np.asarray(uv[:, 1], np.float64) * h - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+    x0, y0 = x0.astype(np.int64) % w, y0.astype(np.int64) % h
+    x1, y1 = (x0 + 1) % w, (y0 + 1) % h
+    c = (t[y0, x0] * (1 - fx) * (1 - fy) + t[y0, x1] * fx * (1 - fy)
+         + t[y1, x0] * (1 - fx) * fy + t[y1, x1] * fx * fy)
+    if c.shape[1] == 1:
+        c = np.repeat(c, 3, axis=1)
+    return c[:, :3]
+
+
+def shade(materials, material_ids: np.ndarray, uv: Optional[np.ndarray]):
+    """Albedo and emission (N, 3) for hits with these material ids and UVs (None: no UV map)."""
+    n = len(material_ids)
+    albedo = np.empty((n, 3), np.float32)
+    emissive = np.zeros((n, 3), np.float32)
+    mats = list(materials) or [Material()]
+    ids = np.clip(material_ids, 0, len(mats) - 1)
+    for k, m in enumerate(mats):          # a loop over materials, each one vectorised
+        sel = np.flatnonzero(ids == k)
+        if not sel.size:
+            continue
+        if m.base_color_texture is not None and uv is not None:
+            albedo[sel] = sample_texture(m.base_color_texture, uv[sel])
+        else:
+            albedo[sel] = np.asarray(m.base_color, np.float32)[:3]
+        if m.emission_strength:
+            col = (sample_texture(m.emission_texture, uv[sel])
+                   if m.emission_texture is not None and uv is not None
+                   else np.asarray(m.emission_color, np.float32)[None, :3])
+            emissive[sel] = col * np.float32(m.emission_strength)
+    return albedo, emissive
