@@ -84,15 +84,20 @@ class _Surface:
         cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
         area = np.linalg.norm(cross, axis=1)
         self.face_normal = cross / np.maximum(area, 1e-300)[:, None]
-        rng = np.random.default_rng(seed)
-        ids = rng.choice(len(t), samples, p=area / area.sum())
-        r1, r2 = np.sqrt(rng.random(samples)), rng.random(samples)
-        pt = tri[ids]
-        self.p = (pt[:, 0] * (1 - r1)[:, None] + pt[:, 1] * (r1 * (1 - r2))[:, None]
-                  + pt[:, 2] * (r1 * r2)[:, None])
-        self.n = self.face_normal[ids]
+        self.area = area
+        self.p, self.n = self.sample(samples, seed)
         self.bmin, self.bmax = v.min(axis=0), v.max(axis=0)
         self.eps = 1e-5 * float(np.max(self.bmax - self.bmin) or 1.0)
+
+    def sample(self, count: int, seed: int):
+        """Area-weighted random points on the triangles and their face normals."""
+        rng = np.random.default_rng(seed)
+        ids = rng.choice(len(self.t), count, p=self.area / self.area.sum())
+        r1, r2 = np.sqrt(rng.random(count)), rng.random(count)
+        pt = self.v[self.t[ids]]
+        p = (pt[:, 0] * (1 - r1)[:, None] + pt[:, 1] * (r1 * (1 - r2))[:, None]
+             + pt[:, 2] * (r1 * r2)[:, None])
+        return p, self.face_normal[ids]
 
     def blocker_distance(self, idx, axis):
         """Distance from samples idx towards the card side of `axis` to the first surface."""
@@ -258,17 +263,19 @@ def capture(surface: _Surface, cards, normals=None, uvs=None, material_ids=None,
         c.depth, c.opacity = c.depth.reshape(h, w), c.opacity.reshape(h, w)
 
 
-def texel_coverage(surface: _Surface, cards) -> float:
-    """Share of surface samples that some captured texel sees at the sample's depth."""
-    seen = np.zeros(len(surface.p), bool)
+def texel_coverage(surface: _Surface, cards, samples: int = 32768, seed: int = 1) -> float:
+    """Share of surface samples that some captured texel sees at the sample's depth. The samples
+    are drawn afresh (another seed than placement's), so the number is not biased by them."""
+    pts, nrm = surface.sample(samples, seed)
+    seen = np.zeros(len(pts), bool)
     for c in cards:
         a, (iu, iv) = c.axis, PLANE[c.axis]
-        cos = -(surface.n @ AXES[a])
-        depth = surface.p @ AXES[a] - c.near
+        cos = -(nrm @ AXES[a])
+        depth = pts @ AXES[a] - c.near
         ts = c.texel_size()
         # The 2x2 texels a bilinear lookup at the sample reads (texel centres at i + 0.5).
-        fu = (surface.p[:, iu] - c.rect_min[0]) / ts[0] - 0.5
-        fv = (surface.p[:, iv] - c.rect_min[1]) / ts[1] - 0.5
+        fu = (pts[:, iu] - c.rect_min[0]) / ts[0] - 0.5
+        fv = (pts[:, iv] - c.rect_min[1]) / ts[1] - 0.5
         w, h = c.resolution
         ok = np.flatnonzero((cos > FACING) & (fu > -1) & (fu < w) & (fv > -1) & (fv < h) & ~seen)
         if not ok.size:
