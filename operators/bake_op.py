@@ -1,9 +1,11 @@
-"""`lumen.bake`: extract the scene, bake every mesh SDF, write the cache folder.
+"""`lumen.bake`: extract the scene, bake every mesh SDF and its mesh cards, write the cache folder.
 
 In the UI the bake runs in a worker thread (numpy and Embree only; bpy is touched on the main
 thread alone) while a timer polls it, so Blender stays responsive and Esc cancels. In background
 mode and from scripts `execute` runs the same steps synchronously. Every failure becomes an
 ERROR report and {'CANCELLED'}: nothing is written and the previous cache stays as it was.
+Extraction warnings (materials that fall back to a colour, missing images, missing UVs) are
+reported as WARNINGs and counted in the status line.
 """
 import tempfile
 import threading
@@ -14,7 +16,7 @@ import bpy
 
 from ..lumen_addon.bake import BakeCancelled, BakeSettings, SceneBakeError, bake_scene
 from ..lumen_addon.cache import CacheError, read_cache, write_cache
-from .extract import extract_objects
+from .extract import extract_scene
 from .properties import INT_MAX
 
 # Last successful bake per scene name: reused by the next bake (unchanged meshes are not baked
@@ -28,7 +30,8 @@ POLL_SECONDS = 0.1
 
 def settings_from(scene) -> BakeSettings:
     s = scene.lumen
-    return BakeSettings(voxel_density=float(s.voxel_density), max_resolution=int(s.max_resolution))
+    return BakeSettings(voxel_density=float(s.voxel_density), max_resolution=int(s.max_resolution),
+                        texel_density=float(s.texel_density), texel_budget=int(s.texel_budget))
 
 
 def resolve_folder(path: str, default_name: str = "lumen_cache") -> Path:
@@ -68,6 +71,9 @@ def record_bake(scene, bake, status: str):
     s.last_bricks = min(stats["bricks"], INT_MAX)
     s.last_bytes = min(stats["bytes"], INT_MAX)
     s.last_reused = min(stats["reused"], INT_MAX)
+    s.last_cards = min(int(stats["cards"]), INT_MAX)
+    s.last_texels = min(int(stats["texels"]), INT_MAX)
+    s.last_coverage = min(max(float(stats["coverage"]), 0.0), 1.0)
     s.last_seconds = float(stats["seconds"])
     s.last_status = status
     LAST_BAKES[scene.name] = bake
@@ -87,9 +93,22 @@ def previous_bake(scene):
 
 
 def bake_now(context, scene):
-    """Extract and bake synchronously (raises SceneBakeError and friends)."""
-    objects = extract_objects(context.evaluated_depsgraph_get())
-    return bake_scene(objects, settings_from(scene), previous=previous_bake(scene))
+    """Extract and bake synchronously: (SceneBake, extraction warnings [(object, message)]).
+    Raises SceneBakeError and friends."""
+    objects, warnings = extract_scene(context.evaluated_depsgraph_get())
+    return bake_scene(objects, settings_from(scene), previous=previous_bake(scene)), warnings
+
+
+def report_warnings(op, warnings):
+    for name, message in warnings:
+        op.report({'WARNING'}, f"{name}: {message}")
+
+
+def warning_summary(extracted, baked) -> str:
+    """Short status suffix, e.g. ' (2 material warnings, 1 bake warning; see the Info log)'."""
+    parts = [f"{n} {what} warning{'s' if n != 1 else ''}"
+             for n, what in ((len(extracted), "material"), (len(baked), "bake")) if n]
+    return f" ({', '.join(parts)}; see the Info log)" if parts else ""
 
 
 class _Job:
@@ -98,8 +117,9 @@ class _Job:
     Only plain arrays reach the worker, never bpy data, so the thread cannot race Blender.
     """
 
-    def __init__(self, scene_name, objects, settings, previous):
+    def __init__(self, scene_name, objects, settings, previous, warnings=()):
         self.scene_name = scene_name
+        self.warnings = list(warnings)       # from extraction, reported when the job concludes
         self.cancel = threading.Event()
         self.fraction, self.current = 0.0, ""
         self.result, self.error = None, None
@@ -148,7 +168,7 @@ class LUMEN_OT_bake(bpy.types.Operator):
         self.report({'ERROR'}, f"Lumen bake failed: unexpected {type(exc).__name__}: {exc}")
         return {'CANCELLED'}
 
-    def _finish(self, scene, bake):
+    def _finish(self, scene, bake, warnings=()):
         """Write the cache, then record stats: a bake that cannot be written changes nothing."""
         try:
             folder = resolve_folder(scene.lumen.cache_dir)
@@ -157,11 +177,12 @@ class LUMEN_OT_bake(bpy.types.Operator):
             return self._fail(scene, exc)
         stats = bake.stats()
         status = (f"Baked {stats['objects']} objects, {stats['unique_meshes']} meshes "
-                  f"({stats['reused']} reused), {human_bytes(stats['bytes'])} in "
-                  f"{stats['seconds']:.2f} s to {folder}")
+                  f"({stats['reused']} reused), {stats['cards']} cards, "
+                  f"{human_bytes(stats['bytes'])} in {stats['seconds']:.2f} s to {folder}"
+                  + warning_summary(warnings, bake.warnings))
         record_bake(scene, bake, status)
-        for name, message in bake.warnings:
-            self.report({'WARNING'}, f"{name}: {message}")
+        report_warnings(self, warnings)
+        report_warnings(self, bake.warnings)
         self.report({'INFO'}, status)
         return {'FINISHED'}
 
@@ -172,11 +193,12 @@ class LUMEN_OT_bake(bpy.types.Operator):
             self.report({'ERROR'}, f"A Lumen bake of scene '{scene.name}' is already running")
             return None
         try:
-            objects = extract_objects(context.evaluated_depsgraph_get())
+            objects, warnings = extract_scene(context.evaluated_depsgraph_get())
+            settings = settings_from(scene)
         except Exception as exc:
             self._fail(scene, exc)
             return None
-        return _Job(scene.name, objects, settings_from(scene), previous_bake(scene))
+        return _Job(scene.name, objects, settings, previous_bake(scene), warnings)
 
     def _conclude(self, job):
         """Turn a finished job into the cache, stats and reports (both execute and modal)."""
@@ -189,8 +211,9 @@ class LUMEN_OT_bake(bpy.types.Operator):
             self.report({'WARNING'}, "Lumen bake cancelled; the cache was not changed")
             return {'CANCELLED'}
         if job.error is not None:
+            report_warnings(self, job.warnings)   # may explain the failure (e.g. a bad material)
             return self._fail(scene, job.error)
-        return self._finish(scene, job.result)
+        return self._finish(scene, job.result, job.warnings)
 
     # -- synchronous (background mode, scripts) -------------------------------------------------
 

@@ -7,7 +7,8 @@ import bpy
 from bpy.props import BoolProperty, StringProperty
 
 from ..lumen_addon.cache import write_cache
-from .bake_op import LAST_BAKES, RUNNING, bake_now, failure_message, record_bake, resolve_folder
+from .bake_op import (LAST_BAKES, RUNNING, bake_now, failure_message, record_bake, report_warnings,
+                      resolve_folder)
 
 
 class LUMEN_OT_export_cache(bpy.types.Operator):
@@ -45,9 +46,9 @@ class LUMEN_OT_export_cache(bpy.types.Operator):
         bake = LAST_BAKES.get(scene.name)
         try:
             if bake is None:
-                bake = bake_now(context, scene)
-                for name, message in bake.warnings:
-                    self.report({'WARNING'}, f"{name}: {message}")
+                bake, warnings = bake_now(context, scene)
+                report_warnings(self, warnings)
+                report_warnings(self, bake.warnings)
             folder = resolve_folder(self.filepath, "lumen_export")
             write_cache(folder, bake)
         except Exception as exc:

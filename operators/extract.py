@@ -1,17 +1,50 @@
 """Blender scene -> `ObjectInput`s: every visible mesh instance of the evaluated depsgraph.
 
 Evaluated meshes are used, so modifiers, geometry nodes, collection instances and particle
-instances bake as they show in the viewport. Vertex and triangle arrays are read with
-`foreach_get` (one C copy each, no Python loop) and extracted once per evaluated mesh: linked
-duplicates without modifiers and every instance of the same geometry share the arrays, and the
-bake's content hash then bakes them once.
+instances bake as they show in the viewport. Every per-vertex, per-corner and per-triangle array
+is read with `foreach_get` (one C copy each, no Python loop) and gathered with numpy by the
+loop triangles' vertex and loop indices. Arrays are extracted once per evaluated mesh (and per
+distinct set of materials on it): linked duplicates without modifiers and every instance of the
+same geometry share them, and the bake's content hash then bakes them once.
+
+Materials become `lumen_addon.materials.Material`s the way Workbench and the cards need them:
+a Principled BSDF feeding the active Material Output gives Base Color, Emission Color and
+Emission Strength, each a value or an Image Texture linked straight to the socket (through
+reroutes). Anything else falls back to the material's viewport display colour. Nothing here
+raises for bad materials: every fallback is recorded as a warning naming the object and the
+material, and `extract_scene` returns those warnings for the operator to report.
 """
+from __future__ import annotations
+
 import numpy as np
 
 from ..lumen_addon.bake import ObjectInput
+from ..lumen_addon.materials import Material
 
 _EMPTY_V = np.zeros((0, 3), np.float64)
 _EMPTY_T = np.zeros((0, 3), np.int64)
+
+# Colour spaces whose byte pixels are already linear (or data: normal maps, masks).
+_LINEAR_SPACES = {"Non-Color", "scene_linear", "ACEScg", "ACES2065-1", "Linear Rec.709",
+                  "Linear Rec.2020", "Linear CIE-XYZ D65", "Linear CIE-XYZ E",
+                  "Linear DCI-P3 D65", "Linear FilmLight E-Gamut", "Raw", "Linear"}
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB EOTF (IEC 61966-2-1), elementwise, float32."""
+    c = np.asarray(c, np.float32)
+    return np.where(c <= 0.04045, c / np.float32(12.92),
+                    ((np.maximum(c, 0.04045) + np.float32(0.055)) / np.float32(1.055))
+                    ** np.float32(2.4)).astype(np.float32)
+
+
+# -- geometry -----------------------------------------------------------------------------------
+
+def _read(collection, attr, count, dtype, width=1):
+    out = np.empty(count * width, dtype)
+    if count:
+        collection.foreach_get(attr, out)
+    return out if width == 1 else out.reshape(count, width)
 
 
 def mesh_arrays(obj_eval):
@@ -20,14 +53,347 @@ def mesh_arrays(obj_eval):
     if mesh is None:
         return _EMPTY_V, _EMPTY_T
     try:
-        co = np.empty(len(mesh.vertices) * 3, np.float32)
-        mesh.vertices.foreach_get("co", co)
-        tris = mesh.loop_triangles
-        idx = np.empty(len(tris) * 3, np.int32)
-        tris.foreach_get("vertices", idx)
+        return _geometry(mesh)
     finally:
         obj_eval.to_mesh_clear()
-    return co.reshape(-1, 3).astype(np.float64), idx.reshape(-1, 3).astype(np.int64)
+
+
+def _geometry(mesh):
+    co = _read(mesh.vertices, "co", len(mesh.vertices), np.float32, 3)
+    tris = _read(mesh.loop_triangles, "vertices", len(mesh.loop_triangles), np.int32, 3)
+    return co.astype(np.float64), tris.astype(np.int64)
+
+
+def _corner_loops(mesh):
+    """(T, 3) loop (corner) indices of the loop triangles."""
+    return _read(mesh.loop_triangles, "loops", len(mesh.loop_triangles), np.int32, 3)
+
+
+def corner_normals(mesh, loops):
+    """(T, 3, 3) float32 per-corner normals (smooth/flat shading, sharp edges, custom normals)."""
+    normals = _read(mesh.corner_normals, "vector", len(mesh.corner_normals), np.float32, 3)
+    return normals[loops]
+
+
+def material_indices(mesh):
+    return _read(mesh.loop_triangles, "material_index", len(mesh.loop_triangles), np.int32)
+
+
+def corner_uvs(mesh, loops, layer):
+    """(T, 3, 2) float32 UVs of `layer` (a MeshUVLoopLayer) at each triangle corner."""
+    uv = _read(layer.uv, "vector", len(layer.uv), np.float32, 2)
+    return uv[loops]
+
+
+# -- materials ----------------------------------------------------------------------------------
+
+def _follow(socket):
+    """(node, output socket) feeding `socket`, through reroutes; None when unlinked or muted."""
+    seen = 0
+    while socket is not None and socket.is_linked and seen < 64:
+        link = socket.links[0]
+        if link.is_muted or not link.is_valid:
+            return None
+        node = link.from_node
+        if node.type == 'REROUTE':
+            socket, seen = node.inputs[0], seen + 1
+            continue
+        return node, link.from_socket
+    return None
+
+
+def _display_colour(mat):
+    return tuple(float(c) for c in mat.diffuse_color[:3])
+
+
+def _rgb(socket):
+    return tuple(float(c) for c in socket.default_value[:3])
+
+
+class _Texture:
+    """An Image Texture feeding a socket: its image, output (Color/Alpha) and UV map name."""
+
+    def __init__(self, node, output, uv_map, notes):
+        self.node, self.image, self.output = node, node.image, output
+        self.uv_map = uv_map            # None: the mesh's active render UV map
+        self.notes = notes              # warnings about coordinates/projection (texture still used)
+
+
+class MaterialInfo:
+    """A converted material: the Material, the UV map its textures use, and its warnings."""
+
+    def __init__(self, material, uv_maps=(), textured=False, warnings=()):
+        self.material = material
+        self.uv_maps = list(uv_maps)    # UV map names the textures use (None: active render)
+        self.textured = textured
+        self.warnings = list(warnings)
+
+
+class Extractor:
+    """One extraction pass: caches converted materials and images (textures are shared) and
+    collects warnings as {message: [object names]}."""
+
+    def __init__(self):
+        self.materials = {}     # material pointer -> MaterialInfo
+        self.images = {}        # (image pointer, output) -> (array or None, reason)
+        self._warnings = {}
+
+    # warnings ----------------------------------------------------------------------------------
+
+    def warn(self, obj_name, message):
+        self._warnings.setdefault(message, [])
+        if obj_name not in self._warnings[message]:
+            self._warnings[message].append(obj_name)
+
+    def warnings(self):
+        """[(object name, message)], one per distinct problem; more objects are counted."""
+        out = []
+        for message, names in self._warnings.items():
+            who = names[0] if len(names) == 1 else f"{names[0]} (and {len(names) - 1} more objects)"
+            out.append((who, message))
+        return out
+
+    # images ------------------------------------------------------------------------------------
+
+    def image_array(self, image, output="Color"):
+        """float32 (H, W, C) linear pixels of an image, row 0 at v = 0; or (None, reason)."""
+        image = image.original if getattr(image, "is_evaluated", False) else image
+        key = (image.as_pointer(), output)
+        if key not in self.images:
+            self.images[key] = self._convert_image(image, output)
+        return self.images[key]
+
+    @staticmethod
+    def _convert_image(image, output):
+        label = f"image '{image.name}'"
+        if image.source == 'TILED':
+            return None, f"{label} is a UDIM tile set (not supported)"
+        if image.source in {'MOVIE', 'SEQUENCE', 'VIEWER'}:
+            return None, f"{label} is a {image.source.lower()} image (not supported)"
+        try:
+            w, h = image.size[:]          # reading the size loads the pixels
+            n = len(image.pixels) if w and h else 0
+        except Exception as exc:          # pragma: no cover - defensive (corrupt file)
+            return None, f"{label} could not be read ({exc})"
+        if not (w and h and n and image.has_data):
+            where = f" from '{image.filepath}'" if image.filepath else ""
+            return None, f"{label} has no pixel data (file missing or unreadable{where})"
+        channels = n // (w * h)
+        pixels = np.empty(n, np.float32)
+        image.pixels.foreach_get(pixels)
+        pixels = pixels.reshape(h, w, channels)
+        if output == "Alpha":
+            alpha = pixels[:, :, 3:4] if channels == 4 else np.ones((h, w, 1), np.float32)
+            return np.ascontiguousarray(alpha), None
+        if channels == 2:                 # grey + alpha
+            pixels = pixels[:, :, :1]
+            channels = 1
+        if channels not in (1, 3, 4):
+            return None, f"{label} has {channels} channels per pixel (not supported)"
+        space = image.colorspace_settings.name
+        if (image.is_float or image.colorspace_settings.is_data or space in _LINEAR_SPACES
+                or space.startswith("Linear ")):
+            return pixels, None           # Blender keeps float buffers in scene-linear already
+        colour = min(channels, 3)
+        pixels[:, :, :colour] = srgb_to_linear(pixels[:, :, :colour])
+        note = None if "sRGB" in space else f"{label}: colour space '{space}' treated as sRGB"
+        return pixels, note
+
+    # materials ---------------------------------------------------------------------------------
+
+    def material_info(self, mat):
+        key = mat.as_pointer()
+        if key not in self.materials:
+            try:
+                self.materials[key] = self._convert_material(mat)
+            except Exception as exc:      # never let an odd node tree stop the bake
+                self.materials[key] = MaterialInfo(
+                    Material(name=mat.name, base_color=_display_colour(mat)),
+                    warnings=[f"could not be read ({type(exc).__name__}: {exc}); "
+                              f"using its viewport display colour"])
+        return self.materials[key]
+
+    def _convert_material(self, mat):
+        fallback = Material(name=mat.name, base_color=_display_colour(mat))
+        tree = mat.node_tree
+        if tree is None:
+            return MaterialInfo(fallback, warnings=["has no shader nodes; using its viewport "
+                                                    "display colour"])
+        out = tree.get_output_node('EEVEE') or tree.get_output_node('CYCLES')
+        if out is None:
+            return MaterialInfo(fallback, warnings=["has no active Material Output node; using "
+                                                    "its viewport display colour"])
+        src = _follow(out.inputs["Surface"])
+        if src is None:
+            return MaterialInfo(fallback, warnings=["has nothing connected to the Material "
+                                                    "Output's Surface; using its viewport "
+                                                    "display colour"])
+        node = src[0]
+        if node.type != 'BSDF_PRINCIPLED':
+            what = (f"node group '{node.node_tree.name}'" if node.type == 'GROUP' and node.node_tree
+                    else f"a {node.bl_label} node")
+            return MaterialInfo(fallback, warnings=[f"surface is {what}, not a Principled BSDF; "
+                                                    f"using its viewport display colour"])
+
+        warnings, uv_maps = [], []
+        base_socket = node.inputs["Base Color"]
+        base_color, base_tex = _rgb(base_socket), None
+        linked = _follow(base_socket)
+        if linked is not None:
+            tex, why = self._socket_texture(linked, "Base Color")
+            if tex is None:
+                base_color = _display_colour(mat)
+                warnings.append(f"{why}; using its viewport display colour")
+            else:
+                warnings += tex.notes
+                arr, why = self.image_array(tex.image, tex.output)
+                if arr is None:
+                    warnings.append(f"Base Color {why}; using the Base Color value")
+                else:
+                    if why:
+                        warnings.append(why)
+                    base_tex = arr
+                    uv_maps.append(tex.uv_map)
+
+        strength_socket = node.inputs["Emission Strength"]
+        strength = float(strength_socket.default_value)
+        if _follow(strength_socket) is not None:
+            warnings.append(f"Emission Strength is driven by a node (not supported); using its "
+                            f"value {strength:g}")
+        emit_socket = node.inputs["Emission Color"]
+        emission, emit_tex = _rgb(emit_socket), None
+        linked = _follow(emit_socket)
+        if linked is not None and strength != 0.0:
+            tex, why = self._socket_texture(linked, "Emission Color")
+            if tex is None:
+                warnings.append(f"{why}; using the Emission Color value")
+            else:
+                warnings += tex.notes
+                arr, why = self.image_array(tex.image, tex.output)
+                if arr is None:
+                    warnings.append(f"Emission Color {why}; using the Emission Color value")
+                else:
+                    if why:
+                        warnings.append(why)
+                    emit_tex = arr
+                    uv_maps.append(tex.uv_map)
+
+        material = Material(name=mat.name, base_color=base_color, base_color_texture=base_tex,
+                            emission_color=emission, emission_strength=strength,
+                            emission_texture=emit_tex)
+        return MaterialInfo(material, uv_maps, bool(uv_maps), warnings)
+
+    @staticmethod
+    def _socket_texture(linked, socket_name):
+        """The Image Texture linked straight to a socket, or (None, why not)."""
+        node, output = linked
+        if node.type != 'TEX_IMAGE':
+            return None, f"{socket_name} is driven by a {node.bl_label} node (not supported)"
+        if output.name not in ("Color", "Alpha"):
+            return None, f"{socket_name} uses output '{output.name}' of '{node.name}'"
+        if node.image is None:
+            return None, f"{socket_name} texture node '{node.name}' has no image"
+        notes, uv_map = [], None
+        if node.projection != 'FLAT':
+            notes.append(f"texture '{node.name}' uses {node.projection.lower()} projection "
+                         f"(not supported); sampled with UVs")
+        coords = _follow(node.inputs["Vector"])
+        if coords is not None:
+            src, out = coords
+            if src.type == 'UVMAP':
+                uv_map = src.uv_map or None
+            elif not (src.type == 'TEX_COORD' and out.name == "UV"):
+                notes.append(f"texture '{node.name}' takes coordinates from a {src.bl_label} "
+                             f"node (not supported); sampled with the UV map")
+        return _Texture(node, output.name, uv_map, notes), None
+
+
+# -- objects ------------------------------------------------------------------------------------
+
+class MeshData:
+    """Everything extracted from one evaluated mesh with one set of materials, and the warnings
+    that apply to every object showing it."""
+
+    def __init__(self, vertices, triangles, normals=None, uvs=None, material_ids=None,
+                 materials=(), warnings=()):
+        self.vertices, self.triangles = vertices, triangles
+        self.normals, self.uvs, self.material_ids = normals, uvs, material_ids
+        self.materials = list(materials)
+        self.warnings = list(warnings)
+
+
+def _uv_layer(mesh, name, mat_names, warnings):
+    """The UV layer to sample textures with (None if the mesh has none)."""
+    layers = mesh.uv_layers
+    if not len(layers):
+        warnings.append(f"image textures of {mat_names} need a UV map, but the mesh has "
+                        f"none; using the material's colour values")
+        return None
+    default = next((layer for layer in layers if layer.active_render), layers[0])
+    if name is None:
+        return default
+    layer = layers.get(name)
+    if layer is None:
+        warnings.append(f"image textures of {mat_names} use UV map '{name}', which the mesh "
+                        f"does not have; using '{default.name}'")
+        return default
+    return layer
+
+
+def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
+    """MeshData of an evaluated mesh object (its temporary mesh is released before returning).
+
+    Only the material slots that some face uses are converted (unused ones get a placeholder,
+    and their images are not loaded)."""
+    slots = list(obj_eval.material_slots)
+    mesh = obj_eval.to_mesh()
+    if mesh is None:
+        return MeshData(_EMPTY_V, _EMPTY_T)
+    try:
+        key = obj_eval.data.as_pointer() if obj_eval.data is not None else None
+        geo = geometry_cache.get(key) if geometry_cache is not None and key else None
+        if geo is None:
+            loops = _corner_loops(mesh)
+            geo = _geometry(mesh) + (loops, corner_normals(mesh, loops), material_indices(mesh))
+            if geometry_cache is not None and key:
+                geometry_cache[key] = geo
+        vertices, triangles, loops, normals, ids = geo
+
+        warnings, materials, uv_names, textured = [], [], [], []
+        used = set(np.unique(np.clip(ids, 0, len(slots) - 1)).tolist()) if slots else set()
+        for i, slot in enumerate(slots):
+            mat = slot.material
+            if mat is None:
+                if i in used:
+                    warnings.append(f"material slot {i + 1} is empty; using default grey")
+                materials.append(Material(name=f"(empty slot {i + 1})"))
+                continue
+            if i not in used:
+                materials.append(Material(name=mat.name))
+                continue
+            info = ex.material_info(mat)
+            warnings += [f"material '{mat.name}' {message}" for message in info.warnings]
+            materials.append(info.material)
+            if info.textured:
+                textured.append(mat.name)
+                for uv_name in info.uv_maps:
+                    if uv_name not in uv_names:
+                        uv_names.append(uv_name)
+
+        uvs = None
+        if textured:
+            names = ("material " if len(textured) == 1 else "materials ") + ", ".join(
+                f"'{n}'" for n in textured)
+            if len(uv_names) > 1:
+                listed = ", ".join(repr(n or "(active render)") for n in uv_names)
+                warnings.append(f"image textures of {names} use different UV maps ({listed}); "
+                                f"all are sampled with the first")
+            layer = _uv_layer(mesh, uv_names[0], names, warnings)
+            if layer is not None:
+                uvs = corner_uvs(mesh, loops, layer)
+        return MeshData(vertices, triangles, normals, uvs, ids, materials, warnings)
+    finally:
+        obj_eval.to_mesh_clear()
 
 
 def _visible(inst, view_layer):
@@ -42,24 +408,22 @@ def _visible(inst, view_layer):
     return inst.show_self and inst.object.original.visible_get(view_layer=view_layer)
 
 
-def extract_objects(depsgraph, view_layer=None):
-    """Collect every visible mesh instance of `depsgraph` as an ObjectInput (world matrix copied).
+def extract_scene(depsgraph, view_layer=None):
+    """(ObjectInputs of every visible mesh instance, [(object name, warning)]).
 
     Names are the object's name, or `instancer/source.N` for instances, so errors and stats
-    can point at what the user sees in the outliner.
+    can point at what the user sees in the outliner. World matrices are copied.
     """
     view_layer = view_layer or depsgraph.view_layer
-    cache = {}          # evaluated mesh pointer -> arrays
+    ex = Extractor()
+    cache = {}          # (evaluated mesh pointer, material pointers) -> MeshData
+    geometry = {}       # evaluated mesh pointer -> shared geometry arrays
     counts = {}         # instancer name -> instances seen
     out = []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type != 'MESH' or not _visible(inst, view_layer):
             continue
-        key = obj.data.as_pointer() if obj.data is not None else ("object", obj.as_pointer())
-        arrays = cache.get(key)
-        if arrays is None:
-            arrays = cache[key] = mesh_arrays(obj)
         source = obj.original
         if inst.is_instance:
             parent = inst.parent.original.name if inst.parent is not None else "?"
@@ -68,13 +432,28 @@ def extract_objects(depsgraph, view_layer=None):
             name = f"{parent}/{label}.{n:03d}"
         else:
             name = source.name
+        mesh_key = obj.data.as_pointer() if obj.data is not None else ("object", obj.as_pointer())
+        key = (mesh_key, tuple(s.material.as_pointer() if s.material else 0
+                               for s in obj.material_slots))
+        data = cache.get(key)
+        if data is None:
+            data = cache[key] = extract_mesh(obj, ex, geometry)
+        for message in data.warnings:
+            ex.warn(name, message)
         props = getattr(source, "lumen", None)
         out.append(ObjectInput(
-            name=name, vertices=arrays[0], triangles=arrays[1],
+            name=name, vertices=data.vertices, triangles=data.triangles,
             matrix_world=np.array(inst.matrix_world, dtype=np.float64),
             two_sided=bool(props.two_sided) if props is not None else False,
-            resolution_scale=float(props.resolution_scale) if props is not None else 1.0))
-    return out
+            resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
+            normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
+            materials=data.materials))
+    return out, ex.warnings()
+
+
+def extract_objects(depsgraph, view_layer=None):
+    """ObjectInputs of every visible mesh instance (warnings dropped; see `extract_scene`)."""
+    return extract_scene(depsgraph, view_layer)[0]
 
 
 def register():

@@ -20,6 +20,13 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
     max_resolution: IntProperty(
         name="Max Resolution", description="Largest SDF resolution per axis of one mesh (mip 0)",
         default=DEFAULT_MAX_RESOLUTION, min=14, max=HARD_MAX_RESOLUTION)
+    texel_density: FloatProperty(
+        name="Texel Density", description="Mesh card texels per metre (surface-cache atlas)",
+        default=20.0, min=1.0, max=200.0)
+    texel_budget: IntProperty(
+        name="Texel Budget", description="Most atlas texels for the whole scene; cards are scaled "
+                                          "down (with a warning) when they would need more",
+        default=2048 * 2048, min=4096)
     cache_dir: StringProperty(
         name="Cache Folder", description="Where the bake is written (relative to the .blend file)",
         default="//lumen_cache", subtype='DIR_PATH')
@@ -32,6 +39,12 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                             min=0)
     last_reused: IntProperty(name="Reused", min=0,
                              description="Meshes of the last bake taken unchanged from the bake before")
+    last_cards: IntProperty(name="Cards", description="Mesh cards in the last bake", min=0)
+    last_texels: IntProperty(name="Texels", description="Atlas texels used by the mesh cards",
+                             min=0)
+    last_coverage: FloatProperty(
+        name="Coverage", description="Smallest share of a mesh's surface seen by its cards",
+        min=0.0, max=1.0, subtype='FACTOR')
     last_seconds: FloatProperty(name="Seconds", description="Duration of the last bake", min=0.0)
     last_status: StringProperty(name="Status", description="Outcome of the last bake or export")
 

@@ -104,3 +104,71 @@ def scene_stats(scene) -> dict:
     s = scene.lumen
     return {k: getattr(s, k) for k in ("last_objects", "last_unique_meshes", "last_bricks",
                                        "last_bytes", "last_reused", "last_seconds", "last_status")}
+
+
+# -- materials and images -----------------------------------------------------------------------
+
+def principled(name: str, base=(0.8, 0.8, 0.8), emission=None, strength: float = 0.0):
+    """A new material (Principled BSDF -> Material Output, Blender's default tree)."""
+    mat = bpy.data.materials.new(name)
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (*base, 1.0)
+    if emission is not None:
+        bsdf.inputs["Emission Color"].default_value = (*emission, 1.0)
+    bsdf.inputs["Emission Strength"].default_value = strength
+    return mat
+
+
+def image_texture(mat, image, socket: str = "Base Color", uv_map: str | None = None):
+    """Link an Image Texture of `image` straight into the Principled socket (optionally through
+    a UV Map node naming `uv_map`); returns the texture node."""
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs[socket])
+    if uv_map is not None:
+        uv = nodes.new("ShaderNodeUVMap")
+        uv.uv_map = uv_map
+        links.new(uv.outputs["UV"], tex.inputs["Vector"])
+    return tex
+
+
+def replace_surface(mat, node_type: str):
+    """Feed the Material Output from a new node of `node_type` instead of the Principled BSDF."""
+    nodes = mat.node_tree.nodes
+    node = nodes.new(node_type)
+    mat.node_tree.links.new(node.outputs[0], nodes["Material Output"].inputs["Surface"])
+    return node
+
+
+def checker_png(path, width: int = 8, height: int = 4):
+    """Save a small RGBA PNG with distinct byte values per texel and load it back from disk, so
+    it has a filepath like a user's texture. Returns (image, its pixels as (H, W, 4) floats in
+    Blender's order, row 0 at v = 0)."""
+    rng = np.random.default_rng(7)
+    px = (rng.integers(0, 256, (height, width, 4)) / 255.0).astype(np.float32)
+    px[0, 0, :3] = (0.0, 128 / 255, 1.0)       # both ends and the middle of the sRGB curve
+    img = bpy.data.images.new("checker-src", width, height, alpha=True)
+    img.pixels.foreach_set(px.ravel())
+    img.filepath_raw = str(path)
+    img.file_format = 'PNG'
+    img.save()
+    bpy.data.images.remove(img)
+    img = bpy.data.images.load(str(path))
+    return img, px
+
+
+def corner_values(mesh, values_of_loop):
+    """(T, 3, k) per-triangle-corner values by a plain Python loop (the test's reference)."""
+    return np.array([[values_of_loop(li) for li in tri.loops] for tri in mesh.loop_triangles])
+
+
+def add_uv_map(obj, name: str, scale=(1.0, 1.0), offset=(0.0, 0.0)):
+    """A new UV map: the first one's UVs scaled and offset (so the two differ)."""
+    mesh = obj.data
+    base = np.empty(len(mesh.loops) * 2, np.float32)
+    mesh.uv_layers[0].uv.foreach_get("vector", base)
+    layer = mesh.uv_layers.new(name=name)
+    uv = base.reshape(-1, 2) * np.float32(scale) + np.float32(offset)
+    layer.uv.foreach_set("vector", uv.ravel())
+    return layer

@@ -54,6 +54,11 @@ def assert_refused(r, *words):
     pytest.param("flat = cube('Flat', location=(6, 0, 0)); "
                  "flat.data.vertices.foreach_set('co', [0.0] * 24)",
                  ["Flat", "degenerate"], id="all-faces-degenerate"),
+    pytest.param("flat = cube('Painted', location=(6, 0, 0)); "
+                 "image_texture(mat := principled('Paint'), bpy.data.images.new('t', 4, 4)); "
+                 "flat.data.materials.append(mat); "
+                 "flat.data.vertices.foreach_set('co', [0.0] * 24)",
+                 ["Painted", "degenerate"], id="zero-area-mesh-with-textured-material"),
 ])
 def test_bad_scene_is_refused_and_previous_cache_kept(blender, tmp_path, setup, words):
     r, _ = run_case(blender, tmp_path, setup)

@@ -1,0 +1,279 @@
+"""Surface attributes for the mesh cards: per-corner normals, UVs, material ids and materials
+read from real Blender data, and every bad material falling back with a warning, never a crash."""
+import textwrap
+
+import numpy as np
+
+from blender_runner import blender  # noqa: F401  (fixture)
+
+
+
+def srgb_eotf(c):
+    c = np.asarray(c, np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+EXTRACT = """
+from lumen_gi.operators.extract import extract_scene
+def extract():
+    objects, warnings = extract_scene(bpy.context.evaluated_depsgraph_get())
+    return {o.name: o for o in objects}, warnings
+"""
+
+
+def test_principled_values_material_ids_and_flat_normals(blender):
+    res = blender(EXTRACT + textwrap.dedent("""
+        empty_scene()
+        box = cube("Box")
+        box.data.materials.append(principled("Blue", base=(0.1, 0.2, 0.7)))
+        box.data.materials.append(principled("Lamp", base=(0.9, 0.9, 0.9), emission=(1.0, 0.5, 0.25),
+                                             strength=3.0))
+        mi = np.array([0, 1, 0, 1, 0, 0], np.int32)        # faces 1 and 3 glow
+        box.data.polygons.foreach_set("material_index", mi)
+        box.data.update()
+        plain = cube("Plain", location=(3, 0, 0))           # no material slots at all
+        objects, warnings = extract()
+        o = objects["Box"]
+        m = box.data
+        emit(warnings=warnings,
+             materials=[(x.name, list(x.base_color), list(x.emission_color), x.emission_strength,
+                         x.base_color_texture is None, x.emission_texture is None)
+                        for x in o.materials],
+             ids=o.material_ids.tolist(),
+             expected_ids=[m.polygons[t.polygon_index].material_index for t in m.loop_triangles],
+             normals=o.normals.tolist(),
+             face_normals=corner_values(m, lambda li: list(m.polygons[
+                 next(t.polygon_index for t in m.loop_triangles if li in t.loops)].normal)).tolist(),
+             shapes=[list(o.normals.shape), list(o.material_ids.shape)], uvs=o.uvs is None,
+             plain=[len(objects["Plain"].materials), objects["Plain"].uvs is None,
+                    sorted(set(objects["Plain"].material_ids.tolist()))])
+    """))
+    r = res.result
+    assert r["warnings"] == []
+    blue, lamp = r["materials"]
+    assert blue[0] == "Blue" and np.allclose(blue[1], (0.1, 0.2, 0.7)) and blue[3] == 0.0
+    assert lamp[0] == "Lamp" and np.allclose(lamp[2], (1.0, 0.5, 0.25)) and lamp[3] == 3.0
+    assert blue[4] and blue[5] and lamp[4] and lamp[5]          # values, no textures
+    assert r["ids"] == r["expected_ids"] and sorted(set(r["ids"])) == [0, 1]
+    assert r["shapes"] == [[12, 3, 3], [12]]
+    assert np.allclose(r["normals"], r["face_normals"], atol=1e-6)   # flat cube: face normals
+    assert r["uvs"]                       # no texture: no UVs needed
+    assert r["plain"] == [0, True, [0]]   # no slots: empty list -> the core's plain grey
+
+
+def test_image_texture_pixels_linearised_and_uvs_of_the_texture_map(blender, tmp_path):
+    png = tmp_path / "checker.png"
+    res = blender(EXTRACT + textwrap.dedent(f"""
+        empty_scene()
+        img, px = checker_png({str(png)!r})
+        bpy.ops.mesh.primitive_plane_add(size=2.0)
+        plane = bpy.context.object; plane.name = "Plane"
+        add_uv_map(plane, "Second", scale=(0.5, 0.25), offset=(0.1, 0.2))
+        active_render = [l.name for l in plane.data.uv_layers if l.active_render]
+        mat = principled("Checker", base=(0.3, 0.3, 0.3), emission=(1, 1, 1), strength=2.0)
+        image_texture(mat, img, uv_map="Second")
+        image_texture(mat, img, socket="Emission Color", uv_map="Second")   # converted once
+        plane.data.materials.append(mat)
+
+        bpy.ops.mesh.primitive_plane_add(size=2.0, location=(3, 0, 0))
+        other = bpy.context.object; other.name = "Default"
+        add_uv_map(other, "Second", scale=(2.0, 2.0))
+        mat2 = principled("Default UV")
+        image_texture(mat2, img)                               # no UV Map node: active render map
+        other.data.materials.append(mat2)
+
+        # A float image (scene-linear already) and a Non-Color byte image are taken as they are.
+        flt = bpy.data.images.new("float", 2, 2, float_buffer=True)
+        fpx = np.linspace(0.0, 4.0, 16, dtype=np.float32)
+        flt.pixels.foreach_set(fpx)
+        data_img = bpy.data.images.new("data", 2, 2)
+        data_img.colorspace_settings.name = "Non-Color"
+        dpx = (np.arange(16) / 255.0).astype(np.float32)
+        data_img.pixels.foreach_set(dpx)
+        bpy.ops.mesh.primitive_plane_add(location=(6, 0, 0))
+        third = bpy.context.object; third.name = "Linear"
+        mat3 = principled("Linear")
+        image_texture(mat3, flt)
+        third.data.materials.append(mat3)
+        bpy.ops.mesh.primitive_plane_add(location=(9, 0, 0))
+        fourth = bpy.context.object; fourth.name = "Data"
+        mat4 = principled("Data")
+        image_texture(mat4, data_img)
+        fourth.data.materials.append(mat4)
+
+        objects, warnings = extract()
+        o, d, t, dt = objects["Plane"], objects["Default"], objects["Linear"], objects["Data"]
+        m = o.materials[0]
+        me = plane.data
+        emit(warnings=warnings, filepath=img.filepath,
+             tex=m.base_color_texture.tolist(), tex_dtype=str(m.base_color_texture.dtype),
+             px=px.tolist(), same_array=m.emission_texture is m.base_color_texture,
+             base=list(m.base_color), strength=m.emission_strength,
+             uvs=o.uvs.tolist(),
+             second=corner_values(me, lambda li: list(me.uv_layers["Second"].uv[li].vector)).tolist(),
+             first=corner_values(me, lambda li: list(me.uv_layers[0].uv[li].vector)).tolist(),
+             default_uvs=d.uvs.tolist(), active_render=active_render,
+             default_expected=corner_values(other.data, lambda li: list(
+                 other.data.uv_layers[active_render[0]].uv[li].vector)).tolist(),
+             float_tex=t.materials[0].base_color_texture.ravel().tolist(), fpx=fpx.tolist(),
+             data_tex=dt.materials[0].base_color_texture.ravel().tolist(), dpx=dpx.tolist())
+    """))
+    r = res.result
+    assert r["warnings"] == []
+    assert r["filepath"] == str(png)
+    tex, px = np.array(r["tex"]), np.array(r["px"])
+    assert tex.shape == (4, 8, 4) and r["tex_dtype"] == "float32"     # (H, W, C), row 0 = v 0
+    expected = px.copy()
+    expected[..., :3] = srgb_eotf(px[..., :3])                          # alpha stays linear
+    assert np.allclose(tex, expected, atol=1e-6)
+    assert np.allclose(tex[0, 0, :3], [0.0, 0.21586050, 1.0], atol=1e-6)
+    assert r["same_array"] and r["strength"] == 2.0
+    assert np.allclose(r["base"], 0.3)          # the value stays as the no-UV fallback
+    # The UV Map node names "Second": those UVs, not the active render map's.
+    assert np.array(r["uvs"]).shape == (2, 3, 2)
+    assert np.allclose(r["uvs"], r["second"]) and not np.allclose(r["uvs"], r["first"])
+    assert r["active_render"] == ["UVMap"]
+    assert np.allclose(r["default_uvs"], r["default_expected"])
+    assert np.allclose(r["float_tex"], r["fpx"]) and np.allclose(r["data_tex"], r["dpx"])
+
+
+def test_corner_normals_of_smooth_sphere_are_unit_and_match_blender(blender):
+    res = blender(EXTRACT + textwrap.dedent("""
+        empty_scene()
+        ball = sphere("Ball", subdivide=1)
+        bpy.ops.object.shade_smooth()
+        objects, warnings = extract()
+        ev = ball.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        me = ev.to_mesh()
+        expected = corner_values(me, lambda li: list(me.corner_normals[li].vector))
+        flat = corner_values(me, lambda li: list(me.polygons[
+            me.loop_triangles[0].polygon_index].normal))   # any face normal, to prove smoothness
+        ev.to_mesh_clear()
+        n = objects["Ball"].normals
+        emit(shape=list(n.shape), normals=n.tolist(), expected=expected.tolist(),
+             distinct=int(len(np.unique(n.reshape(-1, 3).round(5), axis=0))))
+    """))
+    r = res.result
+    n = np.array(r["normals"])
+    assert r["shape"] == [224, 3, 3]
+    assert np.allclose(np.linalg.norm(n, axis=2), 1.0, atol=1e-5)
+    assert np.allclose(n, r["expected"], atol=1e-6)
+    # Smooth: corners of one vertex share its normal, so far fewer distinct normals than corners.
+    assert r["distinct"] < 224 * 3 / 3
+
+
+BAD = EXTRACT + """
+empty_scene()
+png_ok = PNG
+def textured(name, image):
+    mat = principled(name, base=(0.25, 0.5, 0.75))
+    image_texture(mat, image)
+    return mat
+
+# 1. a textured material on a mesh without UVs
+img, _ = checker_png(png_ok)
+no_uv = cube("NoUV")
+no_uv.data.uv_layers.remove(no_uv.data.uv_layers[0])
+no_uv.data.materials.append(textured("Painted", img))
+# 2. an image whose file is missing
+gone = bpy.data.images.new("gone.png", 4, 4)
+gone.source = 'FILE'
+gone.filepath = MISSING
+gone.reload()
+lost = cube("Lost", location=(2, 0, 0))
+lost.data.materials.append(textured("Lost Texture", gone))
+# 3. non-Principled surfaces: a Diffuse BSDF, a node group, nothing connected
+diffuse = principled("Diffuse Only"); replace_surface(diffuse, "ShaderNodeBsdfDiffuse")
+diffuse.diffuse_color = (0.1, 0.9, 0.2, 1.0)
+group = principled("Grouped")
+gtree = bpy.data.node_groups.new("My Shader Group", "ShaderNodeTree")
+gtree.interface.new_socket("Shader", in_out='OUTPUT', socket_type='NodeSocketShader')
+gnode = group.node_tree.nodes.new("ShaderNodeGroup"); gnode.node_tree = gtree
+group.node_tree.links.new(gnode.outputs[0], group.node_tree.nodes["Material Output"].inputs["Surface"])
+group.diffuse_color = (0.6, 0.1, 0.1, 1.0)
+unlinked = principled("Unlinked")
+for old in list(unlinked.node_tree.links): unlinked.node_tree.links.remove(old)
+unlinked.diffuse_color = (0.3, 0.3, 0.9, 1.0)
+ramp = principled("Ramp", base=(1, 0, 0))
+ramp.node_tree.links.new(ramp.node_tree.nodes.new("ShaderNodeValToRGB").outputs["Color"],
+                         ramp.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+ramp.diffuse_color = (0.4, 0.4, 0.0, 1.0)
+odd = cube("Odd", location=(4, 0, 0))
+for m in (diffuse, group, unlinked, ramp):
+    odd.data.materials.append(m)
+odd.data.polygons.foreach_set("material_index", [0, 1, 2, 3, 0, 0])
+# 4. an empty material slot in use
+holes = cube("Holes", location=(6, 0, 0))
+holes.data.materials.append(principled("Fine"))
+holes.data.materials.append(None)
+holes.data.polygons.foreach_set("material_index", [0, 1, 1, 0, 0, 0])
+# 5. a UV Map node naming a map the mesh lacks
+renamed = cube("Renamed", location=(8, 0, 0))
+mat = principled("Wants UV2"); image_texture(mat, img, uv_map="UV2")
+renamed.data.materials.append(mat)
+# the same broken material on a linked duplicate: one warning, both objects counted
+dup = link(lost.copy()); dup.name = "Lost.dup"
+"""
+
+
+def bad_scene(tmp_path):
+    return f"PNG = {str(tmp_path / 'ok.png')!r}\nMISSING = {str(tmp_path / 'gone.png')!r}\n" + BAD
+
+
+def test_bad_materials_fall_back_with_warnings_naming_object_and_material(blender, tmp_path):
+    res = blender(bad_scene(tmp_path) + """
+objects, warnings = extract()
+def mats(name):
+    return [(m.name, [round(c, 4) for c in m.base_color], m.base_color_texture is None)
+            for m in objects[name].materials]
+emit(warnings=warnings, no_uv=[objects["NoUV"].uvs is None, mats("NoUV")],
+     lost=mats("Lost"), odd=mats("Odd"), holes=mats("Holes"),
+     renamed=objects["Renamed"].uvs is not None)
+""")
+    r = res.result
+    text = "\n".join(f"{who}: {what}" for who, what in r["warnings"])
+
+    def warned(obj, *words):
+        lines = [f"{who}: {what}" for who, what in r["warnings"] if who.startswith(obj)]
+        assert any(all(w in line for w in words) for line in lines), (obj, words, text)
+
+    # 1. no UVs: texture kept for other meshes, this object gets uvs=None -> base colour value
+    warned("NoUV", "material 'Painted'", "no", "UV map", "colour values")
+    assert r["no_uv"] == [True, [["Painted", [0.25, 0.5, 0.75], False]]]
+    # 2. missing file: the Base Color value, no texture; the image and its path are named
+    warned("Lost (and 1 more objects)", "material 'Lost Texture'", "image 'gone.png'",
+           "no pixel data", str(tmp_path / "gone.png"), "Base Color value")
+    assert r["lost"] == [["Lost Texture", [0.25, 0.5, 0.75], True]]
+    # 3. anything but a Principled BSDF (or a texture) feeding it: the viewport display colour
+    warned("Odd", "material 'Diffuse Only'", "Diffuse BSDF", "display colour")
+    warned("Odd", "material 'Grouped'", "node group 'My Shader Group'", "display colour")
+    warned("Odd", "material 'Unlinked'", "Surface", "display colour")
+    warned("Odd", "material 'Ramp'", "Base Color", "Color Ramp", "display colour")
+    assert r["odd"] == [["Diffuse Only", [0.1, 0.9, 0.2], True], ["Grouped", [0.6, 0.1, 0.1], True],
+                        ["Unlinked", [0.3, 0.3, 0.9], True], ["Ramp", [0.4, 0.4, 0.0], True]]
+    # 4. an empty slot: default grey
+    warned("Holes", "material slot 2 is empty", "grey")
+    assert r["holes"][1] == ["(empty slot 2)", [0.8, 0.8, 0.8], True]
+    # 5. a missing named UV map: the active render map instead
+    warned("Renamed", "material 'Wants UV2'", "'UV2'", "'UVMap'")
+    assert r["renamed"]
+    assert len(r["warnings"]) == 8, text     # one per problem, however many objects share it
+
+
+def test_bad_materials_through_the_operator_report_warnings_and_bake(blender, tmp_path):
+    cache = tmp_path / "cache"
+    res = blender(bad_scene(tmp_path) + f"""
+bpy.context.scene.lumen.cache_dir = {str(cache)!r}
+bpy.context.scene.lumen.voxel_density = 4.0
+result, error = bake()
+emit(result=result, error=error, status=bpy.context.scene.lumen.last_status)
+""")
+    r = res.result
+    assert r["result"] == ["FINISHED"], (r["error"], res.explain())
+    warnings = [line for line in res.stdout.splitlines() if line.startswith("Warning: ")]
+    for start, words in (("Warning: NoUV: ", "material 'Painted'"),
+                         ("Warning: Lost (and 1 more objects): ", "material 'Lost Texture'"),
+                         ("Warning: Odd: ", "material 'Grouped'"),
+                         ("Warning: Holes: ", "material slot 2")):
+        assert any(w.startswith(start) and words in w for w in warnings), (start, warnings)
+    assert "8 material warnings" in r["status"], r["status"]
