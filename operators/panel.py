@@ -1,4 +1,4 @@
-"""The Lumen tab of the 3D viewport sidebar (N-panel): settings, bake, stats, export."""
+"""The Lumen tab of the 3D viewport sidebar (N-panel): settings, bake, stats, export, atlas."""
 import bpy
 
 from .bake_op import RUNNING, human_bytes
@@ -27,6 +27,8 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
         col = layout.column()
         col.prop(s, "voxel_density")
         col.prop(s, "max_resolution")
+        col.prop(s, "texel_density")
+        col.prop(s, "texel_budget")
         col.prop(s, "cache_dir")
 
         obj = context.object
@@ -46,6 +48,9 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
                              ("Reused", str(s.last_reused)),
                              ("Bricks", str(s.last_bricks)),
                              ("Size", human_bytes(s.last_bytes)),
+                             ("Cards", str(s.last_cards)),
+                             ("Texels", f"{s.last_texels:,}"),
+                             ("Coverage", f"{s.last_coverage:.1%}"),
                              ("Seconds", f"{s.last_seconds:.2f}")):
             row = grid.split(factor=0.5)
             row.label(text=label)
@@ -54,6 +59,7 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
             box.label(text=s.last_status)
 
         layout.operator("lumen.export_cache", icon='EXPORT')
+        layout.operator("lumen.open_atlas", icon='IMAGE_DATA')
 
 
 def register():

@@ -212,5 +212,9 @@ def test_panel_draws_existing_properties_and_operators(blender):
     r = res.result
     assert r["category"] == "Lumen" and r["region"] == "UI"
     names = [name for kind, name in r["log"] if kind in ("prop", "operator")]
-    assert names == ["lumen.bake", "voxel_density", "max_resolution", "cache_dir",
-                     "resolution_scale", "two_sided", "lumen.export_cache"]
+    assert names == ["lumen.bake", "voxel_density", "max_resolution", "texel_density",
+                     "texel_budget", "cache_dir", "resolution_scale", "two_sided",
+                     "lumen.export_cache", "lumen.open_atlas"]
+    labels = [name for kind, name in r["log"] if kind == "label"]
+    for label in ("Cards", "Texels", "Coverage"):
+        assert label in labels

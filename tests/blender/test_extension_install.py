@@ -57,7 +57,8 @@ def test_install_enable_and_bake(extension_zip, blender, tmp_path):
         bpy.ops.preferences.addon_disable(module="bl_ext.user_default.lumen_gi")
         unregistered = not any(hasattr(t, n) for t, n in (
             (bpy.types.Scene, "lumen"), (bpy.types.Object, "lumen"), (bpy.types, "LUMEN_OT_bake"),
-            (bpy.types, "LUMEN_OT_export_cache"), (bpy.types, "VIEW3D_PT_lumen")))
+            (bpy.types, "LUMEN_OT_export_cache"), (bpy.types, "LUMEN_OT_open_atlas"),
+            (bpy.types, "VIEW3D_PT_lumen")))
         emit(unregistered=unregistered, install=sorted(result), enabled=enabled, file=module.__file__,
              wheel_installed=wheel_installed,
              wheel_removed=not os.path.isdir(os.path.join(site, "embreex")),
