@@ -2,8 +2,9 @@
 
     .venv/bin/python tools/demo.py [scene.blend] [--out DIR] [--voxel-density N]
 
-Without a .blend it builds a small demo scene in code: a floor, a box, a subdivided UV sphere
-with two linked duplicates (one shared bake), a torus, a thin two-sided wall and a sun. The
+Without a .blend it builds a small demo scene in code: a floor with a colour-grid texture, a red
+box, a subdivided UV sphere with two linked duplicates (one shared bake), a glowing torus, a thin
+two-sided wall and a sun. The
 add-on is loaded straight from this repository (as package `lumen_gi`), `lumen.bake` and
 `lumen.export_cache` run exactly as from the N-panel, the exported cache is read back and
 validated, and a table of what was baked is printed. Exits 1 with the error on failure.
@@ -42,10 +43,26 @@ def build_demo_scene(*, sphere_segments: int = 16, sphere_rings: int = 8):
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
 
+    def material(name, base=(0.8, 0.8, 0.8), emission=(0.0, 0.0, 0.0), strength=0.0, image=None):
+        mat = bpy.data.materials.new(name)
+        bsdf = mat.node_tree.nodes["Principled BSDF"]
+        bsdf.inputs["Base Color"].default_value = (*base, 1.0)
+        bsdf.inputs["Emission Color"].default_value = (*emission, 1.0)
+        bsdf.inputs["Emission Strength"].default_value = strength
+        if image is not None:   # an Image Texture straight into Base Color, default UV map
+            tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+            tex.image = image
+            mat.node_tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+        return mat
+
     bpy.ops.mesh.primitive_plane_add(size=6.0, location=(0, 0, 0))
     bpy.context.object.name = "Floor"
+    grid = bpy.data.images.new("Floor Grid", 256, 256)
+    grid.generated_type = 'COLOR_GRID'
+    bpy.context.object.data.materials.append(material("Floor", image=grid))
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(-1.5, 0.5, 0.5))
     bpy.context.object.name = "Box"
+    bpy.context.object.data.materials.append(material("Red", base=(0.8, 0.05, 0.05)))
     bpy.ops.mesh.primitive_uv_sphere_add(segments=sphere_segments, ring_count=sphere_rings,
                                          radius=0.5, location=(0.5, -1.0, 0.5))
     sphere = bpy.context.object
@@ -58,6 +75,8 @@ def build_demo_scene(*, sphere_segments: int = 16, sphere_rings: int = 8):
         scene.collection.objects.link(dup)
     bpy.ops.mesh.primitive_torus_add(major_radius=0.6, minor_radius=0.2, location=(0.5, 1.2, 0.2))
     bpy.context.object.name = "Torus"
+    bpy.context.object.data.materials.append(
+        material("Glow", base=(0.9, 0.9, 0.9), emission=(1.0, 0.6, 0.2), strength=5.0))
     bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-2.5, -1.0, 1.0),
                                      rotation=(0.0, math.pi / 2, 0.0))
     wall = bpy.context.object
@@ -74,9 +93,11 @@ def build_demo_scene(*, sphere_segments: int = 16, sphere_rings: int = 8):
 
 
 def summary(bake) -> str:
-    """One row per object: mesh hash, mip-0 resolution, bricks kept/total (all mips), bytes."""
-    rows = [("object", "mesh", "resolution", "bricks", "bytes")]
-    seen = set()
+    """One row per object: mesh hash, mip-0 resolution, bricks kept/total (all mips), bytes, and
+    the mesh cards: how many, their atlas texels and the share of the surface they see."""
+    rows = [("object", "mesh", "resolution", "bricks", "bytes", "cards", "texels", "coverage")]
+    seen, seen_cards = set(), set()
+    cards = getattr(bake, "cards", None) or {}
     for inst in bake.instances:
         stats = bake.meshes[inst.mesh].stats()
         kept = sum(s["bricks_kept"] for s in stats)
@@ -84,11 +105,19 @@ def summary(bake) -> str:
         nbytes = sum(s["bytes"] for s in stats)
         shared = inst.mesh in seen
         seen.add(inst.mesh)
+        ckey = getattr(inst, "cards", "")
+        mc = cards.get(ckey)
+        card_cols = (("-", "-", "-") if mc is None else
+                     (str(len(mc.cards)), "(shared)" if ckey in seen_cards else f"{mc.texels:,}",
+                      f"{mc.coverage:.1%}"))
+        seen_cards.add(ckey)
         rows.append((inst.name, inst.mesh[:12], "x".join(map(str, stats[0]["resolution"])),
-                     f"{kept}/{total}", "(shared)" if shared else f"{nbytes:,}"))
+                     f"{kept}/{total}", "(shared)" if shared else f"{nbytes:,}") + card_cols)
     t = bake.stats()
     rows.append(("total", f"{t['unique_meshes']} meshes", f"{t['objects']} objects",
-                 f"{t['bricks']}", f"{t['bytes']:,}"))
+                 f"{t['bricks']}", f"{t['bytes']:,}", str(t.get("cards", "-")),
+                 f"{t['texels']:,}" if "texels" in t else "-",
+                 f"{t['coverage']:.1%} min" if "coverage" in t else "-"))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) if i < 3 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
              for r in rows]
