@@ -61,7 +61,7 @@ class LUMEN_OT_open_atlas(bpy.types.Operator):
     """Load the mesh-card atlas of the cache folder as images (Lumen Atlas albedo, normal, ...)"""
 
     bl_idname = "lumen.open_atlas"
-    bl_label = "Open Card Atlas"
+    bl_label = "Open Atlas"
     bl_options = {'REGISTER'}
 
     @classmethod
