@@ -109,15 +109,20 @@ def world_scale(matrix) -> float:
     return float(np.linalg.norm(np.asarray(matrix, float)[:3, :3], axis=0).max())
 
 
-def cards_hash(obj: ObjectInput, sdf_key: str, settings: BakeSettings) -> str:
+def cards_hash(obj: ObjectInput, sdf_key: str, settings: BakeSettings, digests=None) -> str:
     """Content hash of everything that changes a mesh's cards: geometry (via the SDF key),
-    surface attributes, materials, card settings and the world scale (texels per metre)."""
+    surface attributes, materials, card settings (the budget too: it scales resolutions) and
+    the world scale (texels per metre). digests: {id(material): digest} memo for one bake, so a
+    texture shared by many objects is hashed once."""
+    digests = {} if digests is None else digests
     h = hashlib.sha1(sdf_key.encode())
     for arr in (obj.normals, obj.uvs, obj.material_ids):
         h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())
     for m in obj.materials:
-        h.update(m.digest())
-    h.update(repr((settings.texel_density, settings.max_cards,
+        if id(m) not in digests:
+            digests[id(m)] = m.digest()
+        h.update(digests[id(m)])
+    h.update(repr((settings.texel_density, settings.texel_budget, settings.max_cards,
                    round(world_scale(obj.matrix_world), 6), ALGORITHM_VERSION)).encode())
     return h.hexdigest()[:20]
 
@@ -133,7 +138,7 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
     objects = list(objects)
     if not objects:
         raise SceneBakeError([("scene", "no visible mesh objects to bake")])
-    problems, instances, todo, card_todo = [], [], {}, {}
+    problems, instances, todo, card_todo, digests = [], [], {}, {}, {}
     for obj in objects:
         m = np.asarray(obj.matrix_world, dtype=np.float64)
         if m.shape != (4, 4) or not np.isfinite(m).all():
@@ -148,7 +153,7 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
             problems.append((obj.name, str(exc)))
             continue
         key = mesh_hash(obj, settings)
-        ckey = cards_hash(obj, key, settings)
+        ckey = cards_hash(obj, key, settings, digests)
         instances.append(Instance(obj.name, key, m, ckey))
         todo.setdefault(key, obj)
         card_todo.setdefault(ckey, obj)
@@ -212,12 +217,21 @@ def _bake_cards(todo: dict, settings: BakeSettings, previous, warnings, progress
         cardlib.set_resolution(placed, density)
     wanted = sum(c.resolution[0] * c.resolution[1] for *_, placed, _ in new.values() for c in placed)
     if wanted and kept + wanted > settings.texel_budget:
-        f = float(np.sqrt(max(settings.texel_budget - kept, 0) / wanted))
-        for _, _, _, placed, density in new.values():
-            cardlib.set_resolution(placed, density * f)
+        room = max(settings.texel_budget - kept, 0)
+        f = float(np.sqrt(room / wanted))
+        for _ in range(60):      # rounding each side up can overshoot: shrink until it fits
+            for _, _, _, placed, density in new.values():
+                cardlib.set_resolution(placed, density * f)
+            got = sum(c.resolution[0] * c.resolution[1] for *_, placed, _ in new.values() for c in placed)
+            if got <= room:
+                break
+            f *= 0.97
         warnings.append(("scene", f"{kept + wanted:,} card texels exceed the budget of "
                                   f"{settings.texel_budget:,}: new cards scaled to {100 * f:.0f}% "
-                                  f"resolution (4 texels per side at least)"))
+                                  f"resolution"))
+        if got > room:
+            warnings.append(("scene", f"even at 4x4 texels per card the cards need {kept + got:,} "
+                                      f"texels; raise the texel budget"))
     for n, (key, (obj, surface, attrs, placed, _)) in enumerate(new.items()):
         progress(0.3 + 0.7 * n / len(new), obj.name)
         cardlib.capture(surface, placed, **attrs)

@@ -65,6 +65,16 @@ def test_round_trip_identical(scene_bake, tmp_path):
     assert json.loads((tmp_path / "c" / MANIFEST).read_text())["stats"]["objects"] == 3
 
 
+def test_lower_texel_budget_recaptures_cards(scene_bake):
+    sv, sf = shapes.icosphere(0.5, 3)
+    objs = [ObjectInput("Sphere", sv, sf)]
+    first = bake_scene(objs, BakeSettings(voxel_density=16))
+    tight = bake_scene(objs, BakeSettings(voxel_density=16, texel_budget=1000), previous=first)
+    assert tight.stats()["texels"] <= 1000 < first.stats()["texels"]
+    assert any("budget" in msg for _, msg in tight.warnings)
+    assert tight.reused == 1            # the SDF is not affected by card settings
+
+
 def test_rebake_reuses_unchanged_meshes(scene_bake):
     sv, sf = shapes.icosphere(0.5, 3)
     again = bake_scene([ObjectInput("Sphere", sv, sf)], scene_bake.settings, previous=scene_bake)
