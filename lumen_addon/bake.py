@@ -208,7 +208,8 @@ def _bake_cards(todo: dict, settings: BakeSettings, previous, warnings, progress
             continue
         progress(0.3 * len(new) / max(len(todo), 1), obj.name)
         surface, attrs, notes = cardlib.prepare(obj.vertices, obj.triangles, obj.normals, obj.uvs,
-                                                obj.material_ids, obj.materials)
+                                                obj.material_ids, obj.materials,
+                                                two_sided=obj.two_sided)
         warnings.extend((obj.name, n) for n in notes)
         placed = cardlib.place_cards(surface, max_cards=settings.max_cards)
         new[key] = (obj, surface, attrs, placed, settings.texel_density * world_scale(obj.matrix_world))

@@ -73,7 +73,7 @@ class MeshCards:
 class _Surface:
     """The mesh, its Embree scene and area-weighted surface samples for placement and coverage."""
 
-    def __init__(self, v, t, samples, seed=0):
+    def __init__(self, v, t, samples, seed=0, two_sided=False):
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
 
@@ -85,6 +85,7 @@ class _Surface:
         area = np.linalg.norm(cross, axis=1)
         self.face_normal = cross / np.maximum(area, 1e-300)[:, None]
         self.area = area
+        self.two_sided = bool(two_sided)
         self.p, self.n = self.sample(samples, seed)
         self.bmin, self.bmax = v.min(axis=0), v.max(axis=0)
         self.eps = 1e-5 * float(np.max(self.bmax - self.bmin) or 1.0)
@@ -97,7 +98,10 @@ class _Surface:
         pt = self.v[self.t[ids]]
         p = (pt[:, 0] * (1 - r1)[:, None] + pt[:, 1] * (r1 * (1 - r2))[:, None]
              + pt[:, 2] * (r1 * r2)[:, None])
-        return p, self.face_normal[ids]
+        n = self.face_normal[ids]
+        if self.two_sided:       # both sides are surface: half the samples look the other way
+            n = np.where((np.arange(count) % 2 == 0)[:, None], n, -n)
+        return p, n
 
     def blocker_distance(self, idx, axis):
         """Distance from samples idx towards the card side of `axis` to the first surface."""
@@ -238,8 +242,10 @@ def capture(surface: _Surface, cards, normals=None, uvs=None, material_ids=None,
                               dists=np.full(len(o), c.far - c.near, np.float32), output=1)
         prim = r["primID"]
         hit = np.flatnonzero(prim >= 0)
-        # Only front faces belong to this card; a back face means we are looking from inside.
-        hit = hit[surface.face_normal[prim[hit]] @ AXES[c.axis] < 0]
+        facing = surface.face_normal[prim[hit]] @ AXES[c.axis]
+        if not surface.two_sided:
+            # Only front faces belong to this card; a back face means we are looking from inside.
+            hit, facing = hit[facing < 0], facing[facing < 0]
         pid = prim[hit]
         bu, bv = r["u"][hit].astype(np.float64), r["v"][hit].astype(np.float64)
         bary = np.stack([1 - bu - bv, bu, bv], axis=1)
@@ -248,6 +254,7 @@ def capture(surface: _Surface, cards, normals=None, uvs=None, material_ids=None,
             nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
         else:
             nrm = surface.face_normal[pid]
+        nrm = np.where((facing > 0)[:, None], -nrm, nrm)   # two-sided: the side the card sees
         uv = np.einsum("nk,nkj->nj", bary, uvs[pid]) if uvs is not None else None
         mid = material_ids[pid] if material_ids is not None else np.zeros(len(pid), np.int64)
         albedo, emissive = shade(materials, mid, uv)
@@ -294,18 +301,19 @@ def texel_coverage(surface: _Surface, cards, samples: int = 32768, seed: int = 1
 
 
 def bake_mesh_cards(vertices, triangles, *, texel_density: float = 20.0, normals=None, uvs=None,
-                    material_ids=None, materials=None, max_cards: int = 32, samples: int = 16384,
-                    seed: int = 0) -> MeshCards:
+                    material_ids=None, materials=None, max_cards: int = 32, two_sided: bool = False,
+                    samples: int = 16384, seed: int = 0) -> MeshCards:
     """Place, capture and measure the cards of one mesh (local space, metres).
 
     normals (T,3,3), uvs (T,3,2), material_ids (T,), materials [Material]: optional surface
     attributes; without materials the albedo is plain grey. texel_density: texels per metre
-    (each card side clamped to 4..512 texels). Raises MeshError on meshes that cannot be baked.
+    (each card side clamped to 4..512 texels). two_sided: both sides of every face are surface
+    (foliage, sheets). Raises MeshError on meshes that cannot be baked.
     """
     if not (np.isfinite(texel_density) and texel_density > 0):
         raise MeshError(f"texel density must be a positive number, got {texel_density!r}")
     surface, attrs, warnings = prepare(vertices, triangles, normals, uvs, material_ids, materials,
-                                       samples, seed)
+                                       samples, seed, two_sided)
     cards = place_cards(surface, max_cards=max_cards)
     set_resolution(cards, texel_density)
     capture(surface, cards, **attrs)
@@ -318,7 +326,8 @@ def finish(surface: _Surface, cards, warnings) -> MeshCards:
     return MeshCards(cards, texel_coverage(surface, cards), warnings)
 
 
-def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=16384, seed=0):
+def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=16384, seed=0,
+            two_sided=False):
     """Validate the mesh and its attributes; drop what is unusable with a warning."""
     mesh = clean_mesh(vertices, triangles)
     t = np.asarray(triangles)
@@ -342,5 +351,5 @@ def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=
         material_ids = np.clip(material_ids.astype(np.int64), 0, len(mats) - 1)
     if uvs is None and any(m.base_color_texture is not None or m.emission_texture is not None for m in mats):
         warnings.append("a material has a texture but the mesh has no UVs: base colour used instead")
-    surface = _Surface(mesh.vertices, mesh.triangles, samples, seed)
+    surface = _Surface(mesh.vertices, mesh.triangles, samples, seed, two_sided)
     return surface, {"normals": normals, "uvs": uvs, "material_ids": material_ids, "materials": mats}, warnings

@@ -153,3 +153,14 @@ def test_bad_attributes_fall_back_with_warnings():
     assert any("normals ignored" in w for w in mc.warnings) and any("UVs ignored" in w for w in mc.warnings)
     with pytest.raises(MeshError, match="degenerate"):
         bake_mesh_cards(np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.0]]), np.array([[0, 1, 2]]))
+
+
+def test_two_sided_sheet_is_captured_from_both_sides():
+    v, f, _ = plane()
+    one = bake_mesh_cards(v, f, texel_density=20)
+    both = bake_mesh_cards(v, f, texel_density=20, two_sided=True)
+    assert [AXES[c.axis][2] for c in one.cards] == [-1.0]          # only the top is surface
+    assert sorted(AXES[c.axis][2] for c in both.cards) == [-1.0, 1.0]
+    assert both.coverage == 1.0
+    for c in both.cards:                                             # normals face each card
+        assert np.allclose(c.normal[c.opacity > 0], -AXES[c.axis])
