@@ -118,29 +118,27 @@ def _write_atlas(folder: Path, bake: SceneBake) -> dict:
 
 
 def _write_image(folder: Path, stem: str, ext: str, data: np.ndarray):
+    """Encode with OpenImageIO (into a scratch file: it writes files), then write atomically
+    under a content name. Returns (sha256, size)."""
     import OpenImageIO as oiio
 
-    fd, tmp = tempfile.mkstemp(prefix=f".atlas-{stem}.", suffix=f".{ext}", dir=folder)
+    fd, scratch = tempfile.mkstemp(prefix=f".atlas-{stem}.", suffix=f".{ext}", dir=folder)
     os.close(fd)
     try:
         fmt = oiio.UINT8 if data.dtype == np.uint8 else oiio.FLOAT
         spec = oiio.ImageSpec(int(data.shape[1]), int(data.shape[0]), int(data.shape[2]), fmt)
         if ext == "exr":
             spec.attribute("compression", "zip")
-        out = oiio.ImageOutput.create(tmp)
-        if out is None or not out.open(tmp, spec) or not out.write_image(np.ascontiguousarray(data)):
-            raise OSError(f"OpenImageIO could not write {tmp}: {oiio.geterror()}")
+        out = oiio.ImageOutput.create(scratch)
+        if out is None or not out.open(scratch, spec) or not out.write_image(np.ascontiguousarray(data)):
+            raise OSError(f"OpenImageIO could not write {scratch}: {oiio.geterror()}")
         out.close()
-        payload = Path(tmp).read_bytes()
-        digest = hashlib.sha256(payload).hexdigest()
-        os.replace(tmp, folder / f"atlas-{stem}-{digest[:16]}.{ext}")
-        return digest, len(payload)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+        payload = Path(scratch).read_bytes()
+    finally:
+        Path(scratch).unlink(missing_ok=True)
+    digest = hashlib.sha256(payload).hexdigest()
+    _atomic_write(folder / f"atlas-{stem}-{digest[:16]}.{ext}", payload)
+    return digest, len(payload)
 
 
 def _atomic_write(path: Path, data: bytes):
@@ -183,17 +181,23 @@ def read_cache(folder) -> SceneBake:
         raise CacheError(f"{mpath}: malformed manifest ({type(exc).__name__}: {exc})") from exc
 
 
-def _decode(manifest, folder: Path) -> SceneBake:
-    info = manifest["sdf"]
-    npz_path = folder / str(info["file"])
-    if Path(info["file"]).name != info["file"]:
-        raise CacheError(f"{folder / MANIFEST}: array file name {info['file']!r} leaves the folder")
+def _read_verified(folder: Path, entry: dict):
+    """(path, bytes) of a file the manifest names, checked against its size and SHA-256."""
+    name = str(entry["file"])
+    if Path(name).name != name:
+        raise CacheError(f"{folder / MANIFEST}: file name {name!r} leaves the folder")
+    path = folder / name
     try:
-        payload = npz_path.read_bytes()
+        payload = path.read_bytes()
     except OSError as exc:
-        raise CacheError(f"{npz_path}: cannot read ({exc.strerror or exc})") from exc
-    if len(payload) != info["size"] or hashlib.sha256(payload).hexdigest() != info["sha256"]:
-        raise CacheError(f"{npz_path}: truncated or modified (size/checksum differ from the manifest)")
+        raise CacheError(f"{path}: cannot read ({exc.strerror or exc})") from exc
+    if len(payload) != entry["size"] or hashlib.sha256(payload).hexdigest() != entry["sha256"]:
+        raise CacheError(f"{path}: truncated or modified (size/checksum differ from the manifest)")
+    return path, payload
+
+
+def _decode(manifest, folder: Path) -> SceneBake:
+    npz_path, payload = _read_verified(folder, manifest["sdf"])
     try:
         arrays = np.load(io.BytesIO(payload), allow_pickle=False)
     except (OSError, ValueError, zipfile.BadZipFile) as exc:
@@ -253,16 +257,7 @@ def _read_atlas(folder: Path, info: dict) -> Atlas:
     width, height = (int(x) for x in info["size"])
     layers = {}
     for name, channels in LAYERS.items():
-        entry = info["layers"][name]
-        path = folder / str(entry["file"])
-        if Path(entry["file"]).name != entry["file"]:
-            raise CacheError(f"{folder / MANIFEST}: atlas file name {entry['file']!r} leaves the folder")
-        try:
-            payload = path.read_bytes()
-        except OSError as exc:
-            raise CacheError(f"{path}: cannot read ({exc.strerror or exc})") from exc
-        if len(payload) != entry["size"] or hashlib.sha256(payload).hexdigest() != entry["sha256"]:
-            raise CacheError(f"{path}: truncated or modified (size/checksum differ from the manifest)")
+        path, _ = _read_verified(folder, info["layers"][name])
         inp = oiio.ImageInput.open(str(path))
         if inp is None:
             raise CacheError(f"{path}: not a readable image ({oiio.geterror()})")

@@ -237,23 +237,14 @@ class Extractor:
 
         warnings, uv_maps = [], []
         base_socket = node.inputs["Base Color"]
-        base_color, base_tex = _rgb(base_socket), None
-        linked = _follow(base_socket)
-        if linked is not None:
-            tex, why = self._socket_texture(linked, "Base Color")
-            if tex is None:
-                base_color = _display_colour(mat)
-                warnings.append(f"{why}; using its viewport display colour")
-            else:
-                warnings += tex.notes
-                arr, why = self.image_array(tex.image, tex.output)
-                if arr is None:
-                    warnings.append(f"Base Color {why}; using the Base Color value")
-                else:
-                    if why:
-                        warnings.append(why)
-                    base_tex = arr
-                    uv_maps.append(tex.uv_map)
+        base_color = _rgb(base_socket)
+        base_tex, uv_map, notes, unsupported = self._linked_texture(base_socket, "Base Color")
+        if unsupported:
+            base_color = _display_colour(mat)
+            notes[-1] += "; using its viewport display colour"
+        warnings += notes
+        if base_tex is not None:
+            uv_maps.append(uv_map)
 
         strength_socket = node.inputs["Emission Strength"]
         strength = float(strength_socket.default_value)
@@ -262,26 +253,35 @@ class Extractor:
                             f"value {strength:g}")
         emit_socket = node.inputs["Emission Color"]
         emission, emit_tex = _rgb(emit_socket), None
-        linked = _follow(emit_socket)
-        if linked is not None and strength != 0.0:
-            tex, why = self._socket_texture(linked, "Emission Color")
-            if tex is None:
-                warnings.append(f"{why}; using the Emission Color value")
-            else:
-                warnings += tex.notes
-                arr, why = self.image_array(tex.image, tex.output)
-                if arr is None:
-                    warnings.append(f"Emission Color {why}; using the Emission Color value")
-                else:
-                    if why:
-                        warnings.append(why)
-                    emit_tex = arr
-                    uv_maps.append(tex.uv_map)
+        if strength != 0.0:
+            emit_tex, uv_map, notes, unsupported = self._linked_texture(emit_socket, "Emission Color")
+            if unsupported:
+                notes[-1] += "; using the Emission Color value"
+            warnings += notes
+            if emit_tex is not None:
+                uv_maps.append(uv_map)
 
         material = Material(name=mat.name, base_color=base_color, base_color_texture=base_tex,
                             emission_color=emission, emission_strength=strength,
                             emission_texture=emit_tex)
         return MaterialInfo(material, uv_maps, bool(uv_maps), warnings)
+
+    def _linked_texture(self, socket, label):
+        """(array, UV map, warnings, unsupported) for an Image Texture linked straight to socket.
+
+        unsupported: something else drives the socket (the caller names its fallback in the
+        last warning). An image without pixels falls back to the socket's own value."""
+        linked = _follow(socket)
+        if linked is None:
+            return None, None, [], False
+        tex, why = self._socket_texture(linked, label)
+        if tex is None:
+            return None, None, [why], True
+        notes = list(tex.notes)
+        arr, why = self.image_array(tex.image, tex.output)
+        if arr is None:
+            return None, None, notes + [f"{label} {why}; using the {label} value"], False
+        return arr, tex.uv_map, notes + ([why] if why else []), False
 
     @staticmethod
     def _socket_texture(linked, socket_name):
