@@ -226,7 +226,6 @@ def set_resolution(cards, texel_density: float):
 
 def capture(surface: _Surface, cards, normals=None, uvs=None, material_ids=None, materials=()):
     """Fill every card's layers with one Embree ray per texel."""
-    t = surface.t
     for c in cards:
         w, h = c.resolution
         iu, iv = PLANE[c.axis]
