@@ -1,13 +1,17 @@
-"""GPU side of Lumen GI: the preview RenderEngine and its passes land here.
+"""GPU side of Lumen GI: the preview RenderEngine ("Lumen GI") and its passes.
 
-Nothing is registered yet; register()/unregister() exist so the add-on's entry point already
-calls this package and the engine can arrive without touching `__init__.py`.
+packing.py (numpy only) lays the bake out as texture arrays; resources.py uploads them;
+glsl/sdf_lib.glsl samples them; sdf_trace.py + glsl/sdf_trace.comp.glsl sphere-trace the camera
+rays; engine.py is the RenderEngine. Imports of bpy/gpu happen inside register(), so pytest can
+import `gpu_shaders.packing` without Blender.
 """
 
 
 def register():
-    pass
+    from . import engine
+    engine.register()
 
 
 def unregister():
-    pass
+    from . import engine
+    engine.unregister()

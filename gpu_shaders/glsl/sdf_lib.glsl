@@ -1,0 +1,128 @@
+/* Lumen GI: sampling the scene's mesh SDFs (mip 0), the GPU twin of lumen_addon.sdf.MeshSDF.sample.
+ *
+ * Resources (declared by the pass's GPUShaderCreateInfo, see gpu_shaders/resources.py):
+ *   sampler3D  sdf_atlas        R8: every kept brick, 8^3 texels per brick cell (packing.py)
+ *   isampler2D sdf_indirection  R32I: all meshes' brick tables, one linear table in rows
+ *   sampler2D  sdf_objects      RGBA32F: 8 texels per instance row (packing.py)
+ * Everything is read with texelFetch: trilinear filtering is done here, in float32, on the codes.
+ */
+
+#define SDF_BRICK 8
+#define SDF_BRICK_CELLS 7
+#define SDF_INVALID_INSIDE -2
+#define SDF_OBJECT_TEXELS 8
+
+int sdf_object_count()
+{
+  return textureSize(sdf_objects, 0).y;
+}
+
+vec4 sdf_object_texel(int obj, int texel)
+{
+  return texelFetch(sdf_objects, ivec2(texel, obj), 0);
+}
+
+/* Code (0..255) of sample c (0..7 per axis) of scene brick `slot`. */
+float sdf_brick_code(int slot, ivec3 c)
+{
+  ivec3 cells = textureSize(sdf_atlas, 0) / SDF_BRICK;
+  ivec3 cell = ivec3(slot % cells.x, (slot / cells.x) % cells.y, slot / (cells.x * cells.y));
+  return texelFetch(sdf_atlas, cell * SDF_BRICK + c, 0).x * 255.0;
+}
+
+int sdf_indirection_fetch(int index)
+{
+  int width = textureSize(sdf_indirection, 0).x;
+  return texelFetch(sdf_indirection, ivec2(index % width, index / width), 0).x;
+}
+
+/* Signed distance (local metres, negative inside) of object `obj` at local point p.
+ * Inside the band: trilinear over the brick's codes. Invalid brick: +-band. Outside the volume:
+ * the larger of the distance to the mesh bounds and the clamped value minus the gap (a lower
+ * bound, safe for sphere tracing), exactly as MeshSDF.sample. */
+float sdf_mesh_local(int obj, vec3 p)
+{
+  vec4 t4 = sdf_object_texel(obj, 4);
+  vec4 t5 = sdf_object_texel(obj, 5);
+  vec4 t6 = sdf_object_texel(obj, 6);
+  vec4 t7 = sdf_object_texel(obj, 7);
+  vec3 origin = t4.xyz;
+  float h = t4.w;
+  ivec3 grid = ivec3(t5.xyz + 0.5);
+  float band = t5.w;
+  int ind_offset = int(t6.w + 0.5);
+  vec3 res = vec3(grid * SDF_BRICK_CELLS);
+
+  vec3 g = (p - origin) / h;
+  vec3 gc = clamp(g, vec3(0.0), res);
+  ivec3 b = min(ivec3(floor(gc / float(SDF_BRICK_CELLS))), grid - 1);
+  vec3 l = gc - vec3(b * SDF_BRICK_CELLS);
+  int slot = sdf_indirection_fetch(ind_offset + b.x + grid.x * (b.y + grid.y * b.z));
+
+  float d;
+  if (slot < 0) {
+    d = (slot == SDF_INVALID_INSIDE) ? -band : band;
+  }
+  else {
+    ivec3 i0 = min(ivec3(l), ivec3(SDF_BRICK - 2));
+    vec3 f = l - vec3(i0);
+    float c000 = sdf_brick_code(slot, i0 + ivec3(0, 0, 0));
+    float c001 = sdf_brick_code(slot, i0 + ivec3(0, 0, 1));
+    float c010 = sdf_brick_code(slot, i0 + ivec3(0, 1, 0));
+    float c011 = sdf_brick_code(slot, i0 + ivec3(0, 1, 1));
+    float c100 = sdf_brick_code(slot, i0 + ivec3(1, 0, 0));
+    float c101 = sdf_brick_code(slot, i0 + ivec3(1, 0, 1));
+    float c110 = sdf_brick_code(slot, i0 + ivec3(1, 1, 0));
+    float c111 = sdf_brick_code(slot, i0 + ivec3(1, 1, 1));
+    float c00 = mix(c000, c001, f.z);
+    float c01 = mix(c010, c011, f.z);
+    float c10 = mix(c100, c101, f.z);
+    float c11 = mix(c110, c111, f.z);
+    float code = mix(mix(c00, c01, f.y), mix(c10, c11, f.y), f.x);
+    d = (code - 127.5) / 127.5 * band;
+  }
+  if (any(lessThan(g, vec3(0.0))) || any(greaterThan(g, res))) {
+    vec3 q = origin + gc * h;
+    float gap = length(p - q);
+    float to_box = length(max(max(t6.xyz - p, p - t7.xyz), vec3(0.0)));
+    d = max(to_box, d - gap);
+  }
+  return d;
+}
+
+vec3 sdf_world_to_local(int obj, vec3 pw)
+{
+  vec4 pw4 = vec4(pw, 1.0);
+  return vec3(dot(sdf_object_texel(obj, 0), pw4),
+              dot(sdf_object_texel(obj, 1), pw4),
+              dot(sdf_object_texel(obj, 2), pw4));
+}
+
+/* World-space distance lower bound of object `obj` at world point pw; voxel_world: its mip-0
+ * voxel edge in world units. */
+float sdf_object_world(int obj, vec3 pw, out float voxel_world)
+{
+  float scale = sdf_object_texel(obj, 7).w;
+  voxel_world = sdf_object_texel(obj, 4).w * scale;
+  return sdf_mesh_local(obj, sdf_world_to_local(obj, pw)) * scale;
+}
+
+/* Scene distance: minimum over objects. voxel_world: voxel of the nearest object; nearest: its
+ * index (-1 with no objects, distance 1e30). */
+float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
+{
+  float best = 1e30;
+  voxel_world = 1.0;
+  nearest = -1;
+  int n = sdf_object_count();
+  for (int i = 0; i < n; i++) {
+    float h;
+    float d = sdf_object_world(i, pw, h);
+    if (d < best) {
+      best = d;
+      voxel_world = h;
+      nearest = i;
+    }
+  }
+  return best;
+}

@@ -1,0 +1,147 @@
+"""Pack a scene bake's mip-0 mesh SDFs into the arrays the GPU textures are made of (no bpy, no gpu).
+
+Three arrays, all uploaded as they are by `resources.py` (x fastest, C order of the shapes below):
+
+- `atlas`: uint8 [az*8, ay*8, ax*8], every kept brick of every unique mesh, brick `s` of the
+  scene at brick cell `(s % ax, (s // ax) % ay, s // (ax*ay))` of a grid of 8^3 blocks; the
+  sample `(x, y, z)` of a brick is texel `8 * cell + (x, y, z)`. Codes as in the cache.
+- `indirection`: int32 [rows, width], one linear table for all meshes: mesh brick `(bx, by, bz)`
+  is entry `offset + bx + gx * (by + gy * bz)`, texel `(i % width, i // width)`; its value is the
+  scene brick slot (mesh slot + the mesh's first slot) or -1 / -2 (not stored, outside / inside).
+- `objects`: float32 [instances, OBJECT_TEXELS, 4], one row of RGBA texels per instance:
+  texels 0-3 the rows of the world-to-local 4x4 matrix; 4 = (origin.xyz, voxel size);
+  5 = (brick grid xyz, band); 6 = (bounds_min.xyz, indirection offset);
+  7 = (bounds_max.xyz, distance scale: local distances times this are world lower bounds,
+  the smallest singular value of the local-to-world 3x3).
+
+Integers stored in float texels (grid, offsets) are exact below 2^24; packing checks that.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+BRICK = 8
+OBJECT_TEXELS = 8
+MAX_BRICKS_PER_AXIS = 256        # 2048 texels: the smallest 3D texture limit of GL 4.5 drivers
+INDIRECTION_WIDTH = 4096
+FLOAT_EXACT = 1 << 24
+
+
+@dataclass
+class PackedScene:
+    atlas: np.ndarray                # uint8 [az*8, ay*8, ax*8]
+    atlas_bricks: tuple              # (ax, ay, az) brick cells per axis
+    indirection: np.ndarray          # int32 [rows, width]
+    objects: np.ndarray              # float32 [instances, OBJECT_TEXELS, 4]
+    mesh_keys: list                  # unique meshes in packing order
+    brick_offset: dict               # mesh key -> first scene brick slot
+    indirection_offset: dict         # mesh key -> first indirection entry
+    instance_names: list = field(default_factory=list)
+    bricks: int = 0                  # kept bricks of all meshes (atlas cells used)
+
+    @property
+    def atlas_size(self) -> tuple:
+        """(width, height, depth) texels of the atlas texture."""
+        return tuple(int(n) * BRICK for n in self.atlas_bricks)
+
+
+def atlas_grid(n_bricks: int) -> tuple:
+    """Brick cells (ax, ay, az) of an atlas holding n_bricks: near-cubic, at most 256 per axis."""
+    n = max(int(n_bricks), 1)
+    side = min(MAX_BRICKS_PER_AXIS, max(1, math.ceil(round(n ** (1.0 / 3.0), 9))))
+    while side ** 3 < n and side < MAX_BRICKS_PER_AXIS:
+        side += 1
+    az = -(-n // (side * side))
+    if az > MAX_BRICKS_PER_AXIS:
+        raise ValueError(f"{n} bricks do not fit a {MAX_BRICKS_PER_AXIS}^3-brick atlas")
+    return side, side, az
+
+
+def brick_cell(slot, grid) -> np.ndarray:
+    """Atlas brick cell(s) (x, y, z) of scene brick slot(s) for an atlas of `grid` cells."""
+    s = np.asarray(slot, np.int64)
+    ax, ay, _ = grid
+    return np.stack([s % ax, (s // ax) % ay, s // (ax * ay)], axis=-1)
+
+
+def pack_atlas(brick_arrays, grid) -> np.ndarray:
+    """uint8 [az*8, ay*8, ax*8] atlas of the concatenated bricks ([slot, x, y, z] each)."""
+    ax, ay, az = grid
+    cells = ax * ay * az
+    parts = [np.asarray(b, np.uint8).reshape(-1, BRICK, BRICK, BRICK) for b in brick_arrays]
+    allb = np.concatenate(parts) if parts else np.zeros((0, BRICK, BRICK, BRICK), np.uint8)
+    if len(allb) > cells:
+        raise ValueError(f"{len(allb)} bricks do not fit {grid}")
+    full = np.zeros((cells, BRICK, BRICK, BRICK), np.uint8)
+    full[:len(allb)] = allb
+    # slot = bx + ax * (by + ay * bz) -> [bz, by, bx, x, y, z] -> [bz, z, by, y, bx, x]
+    full = full.reshape(az, ay, ax, BRICK, BRICK, BRICK).transpose(0, 5, 1, 4, 2, 3)
+    return np.ascontiguousarray(full.reshape(az * BRICK, ay * BRICK, ax * BRICK))
+
+
+def local_to_world_scale(matrix_world) -> float:
+    """Smallest singular value of the 3x3 part: |local distance| * this <= world distance."""
+    return float(np.linalg.svd(np.asarray(matrix_world, np.float64)[:3, :3], compute_uv=False).min())
+
+
+def object_row(world_to_local, origin, voxel_size, brick_grid, band, bounds_min, bounds_max,
+               indirection_offset, distance_scale) -> np.ndarray:
+    row = np.zeros((OBJECT_TEXELS, 4), np.float64)
+    row[0:4] = np.asarray(world_to_local, np.float64)
+    row[4] = (*origin, voxel_size)
+    row[5] = (*brick_grid, band)
+    row[6] = (*bounds_min, indirection_offset)
+    row[7] = (*bounds_max, distance_scale)
+    return row.astype(np.float32)
+
+
+def pack_scene(meshes: dict, instances, mip: int = 0, indirection_width: int = INDIRECTION_WIDTH) -> PackedScene:
+    """Pack `meshes` (key -> lumen_addon.sdf.MeshSDF) and `instances` (objects with `.name`,
+    `.mesh` (a key) and `.matrix_world`, e.g. lumen_addon.bake.Instance) for the GPU.
+
+    Only meshes some instance uses are packed, in order of first use.
+    """
+    instances = list(instances)
+    keys = list(dict.fromkeys(inst.mesh for inst in instances))
+    missing = [k for k in keys if k not in meshes]
+    if missing:
+        raise KeyError(f"instances name meshes the bake does not hold: {missing}")
+    brick_offset, ind_offset, ind_parts, brick_parts = {}, {}, [], []
+    nb = ni = 0
+    for key in keys:
+        m = meshes[key].mips[mip]
+        ind = np.asarray(m.indirection, np.int32)
+        brick_offset[key], ind_offset[key] = nb, ni
+        glob = np.where(ind >= 0, ind + nb, ind)
+        ind_parts.append(glob.transpose(2, 1, 0).reshape(-1))      # x fastest
+        brick_parts.append(m.bricks)
+        nb += len(m.bricks)
+        ni += ind.size
+    if nb >= FLOAT_EXACT or ni >= FLOAT_EXACT:
+        raise ValueError(f"{nb} bricks / {ni} indirection entries: beyond exact float integers")
+    grid = atlas_grid(nb)
+    atlas = pack_atlas(brick_parts, grid)
+    width = int(max(1, min(indirection_width, ni)))
+    rows = max(1, -(-ni // width))
+    table = np.full(rows * width, -1, np.int32)
+    if ni:
+        table[:ni] = np.concatenate(ind_parts)
+    objects = []
+    for inst in instances:
+        sdf = meshes[inst.mesh]
+        m = sdf.mips[mip]
+        mw = np.asarray(inst.matrix_world, np.float64)
+        objects.append(object_row(np.linalg.inv(mw), sdf.origin, m.voxel_size, m.brick_grid, m.band,
+                                  sdf.bounds_min, sdf.bounds_max, ind_offset[inst.mesh],
+                                  local_to_world_scale(mw)))
+    objs = np.stack(objects) if objects else np.zeros((0, OBJECT_TEXELS, 4), np.float32)
+    return PackedScene(atlas, grid, table.reshape(rows, width), objs, keys, brick_offset, ind_offset,
+                       [inst.name for inst in instances], nb)
+
+
+def pack_bake(bake, mip: int = 0) -> PackedScene:
+    """pack_scene for a lumen_addon.bake.SceneBake (from bake_scene or cache.read_cache)."""
+    return pack_scene(bake.meshes, bake.instances, mip)

@@ -1,0 +1,105 @@
+"""GPU textures of a scene bake's mip-0 SDFs (needs a GPU context: call from RenderEngine.render).
+
+Formats, measured on Mesa llvmpipe (GL 4.5) through Blender 5.0.1's `gpu` module:
+- the brick atlas is R8 (unorm) 3D, uploaded from a FLOAT Buffer of code / 255 (exact);
+- `gpu.types.GPUTexture(..., format='R32I', data=Buffer('FLOAT', ...))` is accepted but leaves the
+  texture zero (the float upload into an integer format fails silently; a non-FLOAT Buffer raises
+  "GPUTexture.__new__: Only Buffer of format `FLOAT` is currently supported"). So the R32I
+  indirection table is filled by a compute pass from an R32F staging texture (integers < 2^24
+  are exact in float), which is then freed.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import gpu
+import numpy as np
+
+from .packing import OBJECT_TEXELS, PackedScene, pack_bake
+
+GLSL = Path(__file__).resolve().parent / "glsl"
+_SHADERS = {}
+
+
+def glsl(name: str) -> str:
+    return (GLSL / name).read_text(encoding="utf-8")
+
+
+def float_buffer(array) -> "gpu.types.Buffer":
+    a = np.ascontiguousarray(array, np.float32).reshape(-1)
+    return gpu.types.Buffer('FLOAT', a.size, a)
+
+
+def _copy_shader():
+    if "copy_int" not in _SHADERS:
+        info = gpu.types.GPUShaderCreateInfo()
+        info.local_group_size(8, 8, 1)
+        info.sampler(0, 'FLOAT_2D', 'src')
+        info.image(0, 'R32I', 'INT_2D', 'dst', qualifiers={'WRITE'})
+        info.compute_source(
+            "void main() {\n"
+            "  ivec2 p = ivec2(gl_GlobalInvocationID.xy);\n"
+            "  if (p.x >= imageSize(dst).x || p.y >= imageSize(dst).y) { return; }\n"
+            "  imageStore(dst, p, ivec4(int(round(texelFetch(src, p, 0).x)), 0, 0, 0));\n"
+            "}\n")
+        _SHADERS["copy_int"] = gpu.shader.create_from_info(info)
+    return _SHADERS["copy_int"]
+
+
+def int_texture_2d(values: np.ndarray) -> "gpu.types.GPUTexture":
+    """R32I 2D texture of int32 values [rows, width] (|v| < 2^24), via an R32F staging texture."""
+    rows, width = values.shape
+    staging = gpu.types.GPUTexture((width, rows), format='R32F', data=float_buffer(values))
+    tex = gpu.types.GPUTexture((width, rows), format='R32I')
+    sh = _copy_shader()
+    sh.uniform_sampler('src', staging)
+    sh.image('dst', tex)
+    gpu.compute.dispatch(sh, -(-width // 8), -(-rows // 8), 1)
+    del staging
+    return tex
+
+
+class SceneResources:
+    """The three textures of a packed scene. `bind(shader)` sets the samplers sdf_lib.glsl reads."""
+
+    def __init__(self, packed: PackedScene):
+        if not len(packed.objects):
+            raise ValueError("the bake has no objects to trace")
+        t0 = time.perf_counter()
+        self.packed = packed
+        ax, ay, az = packed.atlas_size
+        self.atlas = gpu.types.GPUTexture((ax, ay, az), format='R8',
+                                          data=float_buffer(packed.atlas.astype(np.float32) / 255.0))
+        self.indirection = int_texture_2d(packed.indirection)
+        n = len(packed.objects)
+        self.objects = gpu.types.GPUTexture((OBJECT_TEXELS, n), format='RGBA32F',
+                                            data=float_buffer(packed.objects))
+        self.upload_seconds = time.perf_counter() - t0
+
+    @classmethod
+    def from_bake(cls, bake, mip: int = 0) -> "SceneResources":
+        return cls(pack_bake(bake, mip))
+
+    @staticmethod
+    def declare(info, first_slot: int = 0) -> int:
+        """Declare sdf_lib.glsl's samplers on a GPUShaderCreateInfo; returns the next free slot."""
+        info.sampler(first_slot, 'FLOAT_3D', 'sdf_atlas')
+        info.sampler(first_slot + 1, 'INT_2D', 'sdf_indirection')
+        info.sampler(first_slot + 2, 'FLOAT_2D', 'sdf_objects')
+        return first_slot + 3
+
+    def bind(self, shader):
+        shader.uniform_sampler('sdf_atlas', self.atlas)
+        shader.uniform_sampler('sdf_indirection', self.indirection)
+        shader.uniform_sampler('sdf_objects', self.objects)
+
+    def stats(self) -> dict:
+        """GPU bytes per texture, from the sizes and formats actually allocated."""
+        ax, ay, az = self.packed.atlas_size
+        rows, width = self.packed.indirection.shape
+        return {
+            "atlas": ax * ay * az * 1,                               # R8
+            "indirection": width * rows * 4,                         # R32I
+            "objects": OBJECT_TEXELS * len(self.packed.objects) * 16,  # RGBA32F
+        }
