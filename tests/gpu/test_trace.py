@@ -1,5 +1,6 @@
 """The SDF trace pass on the GPU (Mesa llvmpipe in a bpy subprocess, through the LUMEN_GI
-engine's render) against the CPU reference MeshSDF.sphere_trace, ray for ray."""
+engine's render) against the CPU reference MeshSDF.sphere_trace, ray for ray. The box is
+rotated and scaled (1.25): local distances are carried to world by the object table's scale."""
 import sys
 import time
 from pathlib import Path
@@ -26,10 +27,10 @@ from lumen_gi.lumen_addon.cache import write_cache
 from lumen_gi.gpu_shaders import engine
 from lumen_gi.operators import bake_op
 
-def matrix(loc, rz=0.0):
+def matrix(loc, rz=0.0, scale=1.0):
     m = np.eye(4)
     c, s = np.cos(rz), np.sin(rz)
-    m[:3, :3] = [[c, -s, 0], [s, c, 0], [0, 0, 1]]
+    m[:3, :3] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) * scale
     m[:3, 3] = loc
     return m
 
@@ -38,7 +39,7 @@ scene = bpy.context.scene
 v1, f1 = icosphere(0.5, 3)
 v2, f2 = box((0.4, 0.3, 0.5))
 bake = bake_scene([ObjectInput("Ico", v1, f1, matrix((-0.6, 0.0, 0.0))),
-                   ObjectInput("Box", v2, f2, matrix((0.7, 0.2, 0.1), 0.5))],
+                   ObjectInput("Box", v2, f2, matrix((0.7, 0.2, 0.1), 0.5, 1.25))],
                   BakeSettings(voxel_density=24.0))
 write_cache("cache", bake)
 scene.lumen.cache_dir = str(__import__("pathlib").Path("cache").resolve())
