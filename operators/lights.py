@@ -1,0 +1,113 @@
+"""Blender lights and world -> plain float32 arrays for the preview engine (no gpu import).
+
+`light_table(depsgraph)` returns one row of 16 float32 per visible light (4 RGBA texels of the
+light texture read by glsl/direct_light.comp.glsl):
+
+    texel 0: type (0 sun, 1 point, 2 spot, 3 area), world position xyz
+    texel 1: world direction the light points (its -Z axis) xyz, radius (point/spot/area) or
+             angular diameter in radians (sun)
+    texel 2: colour x power in radiometric units (below) rgb, unused
+    texel 3: spot cos(half cone angle), spot blend, area (m^2, area lights), unused
+
+Units follow Cycles (intern/cycles/scene/light.cpp: point and spot strength x 1/(4 pi), area
+x 1/pi, sun unchanged), so that irradiance E at a surface point, and Cycles' Diffuse Direct pass
+(E / pi for a Lambert BSDF, the albedo left out), come out the same:
+    sun:   colour x strength = irradiance E (W/m^2) on a surface facing it
+    point: colour x P / (4 pi) = radiant intensity I (W/sr); E = I cos / d^2
+    spot:  the same as point, times Cycles' spot mask smoothstep((cos - cos_half) / (blend (1 - cos_half)))
+    area:  approximated as a one-sided small emitter at its centre: colour x P / pi = on-axis
+           intensity I0 (W/sr), I = I0 max(cos_light, 0) (P = L A pi for a Lambertian emitter)
+
+`world_colour(scene)` is the uniform sky radiance: the Background node's Color x Strength feeding
+the active World Output (world.color without nodes). A linked Color (environment texture) is not
+evaluated: its unlinked default is used and a note is returned.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+LIGHT_TYPES = {"SUN": 0, "POINT": 1, "SPOT": 2, "AREA": 3}
+ROW = 16
+
+
+def _area_size(light):
+    sx = float(light.size)
+    sy = float(light.size_y) if light.shape in {"RECTANGLE", "ELLIPSE"} else sx
+    area = sx * sy
+    if light.shape in {"DISK", "ELLIPSE"}:
+        area *= math.pi / 4.0
+    return area, 0.5 * math.sqrt(sx * sx + sy * sy)
+
+
+def light_row(light, matrix_world) -> np.ndarray:
+    """The 16 float32 of one bpy Light datablock placed by `matrix_world` (4x4)."""
+    m = np.asarray(matrix_world, np.float64)
+    pos = m[:3, 3]
+    direction = -m[:3, 2]
+    direction = direction / max(np.linalg.norm(direction), 1e-12)
+    colour = np.asarray(light.color, np.float64)[:3]
+    row = np.zeros(ROW, np.float32)
+    kind = LIGHT_TYPES[light.type]
+    row[0] = kind
+    row[1:4] = pos
+    row[4:7] = direction
+    cos_half = blend = area = 0.0
+    if kind == 0:
+        row[7] = float(light.angle)
+        row[8:11] = colour * float(light.energy)
+    elif kind in (1, 2):
+        row[7] = float(light.shadow_soft_size)
+        row[8:11] = colour * float(light.energy) / (4.0 * math.pi)
+        if kind == 2:
+            cos_half = math.cos(0.5 * float(light.spot_size))
+            blend = float(light.spot_blend)
+    else:
+        area, radius = _area_size(light)
+        row[7] = radius
+        row[8:11] = colour * float(light.energy) / math.pi
+    row[12:15] = (cos_half, blend, area)
+    return row
+
+
+def light_table(depsgraph) -> np.ndarray:
+    """float32 [N, 16]: every light instance of the evaluated depsgraph (see the module doc)."""
+    rows = []
+    view_layer = depsgraph.view_layer
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type != 'LIGHT' or obj.data.type not in LIGHT_TYPES:
+            continue
+        if not inst.is_instance and not obj.original.visible_get(view_layer=view_layer):
+            continue
+        rows.append(light_row(obj.data, inst.matrix_world))
+    return np.array(rows, np.float32).reshape(-1, ROW)
+
+
+def world_colour(scene):
+    """(linear RGB float32 (3,), notes): the uniform sky radiance of the scene's world."""
+    world = scene.world
+    notes = []
+    if world is None:
+        return np.zeros(3, np.float32), notes
+    tree = world.node_tree
+    if tree is not None:
+        outputs = [n for n in tree.nodes if n.type == 'OUTPUT_WORLD']
+        out = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
+        if out is not None:
+            surface = out.inputs["Surface"]
+            if not surface.is_linked:
+                return np.zeros(3, np.float32), notes
+            node = surface.links[0].from_node
+            while node.type == 'REROUTE' and node.inputs[0].is_linked:
+                node = node.inputs[0].links[0].from_node
+            if node.type == 'BACKGROUND':
+                colour = np.asarray(node.inputs["Color"].default_value[:3], np.float64)
+                if node.inputs["Color"].is_linked:
+                    notes.append("world Background colour is linked (texture): its default "
+                                 "value is used")
+                strength = float(node.inputs["Strength"].default_value)
+                return (colour * strength).astype(np.float32), notes
+            notes.append(f"world surface is a {node.bl_label} node: using world.color")
+    return np.asarray(world.color[:3], np.float32), notes
