@@ -1,0 +1,225 @@
+"""The global SDF: 4 clipmap levels around the camera, built on the GPU from the mesh SDFs.
+
+Needs a GPU context (RenderEngine.render / view_draw with bl_use_gpu_context). Level k is an
+N^3 R16F (or R32F) 3D texture of voxel size base * 2^k whose first world cell is
+floor(camera / voxel) - N/2 (snapped to the level's own grid; see global_sdf_ref.py for the
+layout). Each texel stores min(sdf_scene(centre), band), band = BAND_VOXELS voxels of that level:
+exact inside the band, a conservative bound beyond it.
+
+`update(camera_pos, frame, objects_changed)`: level k is due on frames that are multiples of 2^k;
+a due level is rebuilt when the objects changed since its last build (whole level), or scrolled
+when its snapped origin moved (only the cells new to the level are evaluated: toroidal texels).
+A level that was never built is built at once. `glsl/global_sdf_lib.glsl` samples the levels
+(`global_sdf_sample`) and traces rays (`trace_hybrid`: mesh SDFs for t < 1.8 m, global beyond).
+"""
+from __future__ import annotations
+
+import time
+
+import gpu
+import numpy as np
+
+from .global_sdf_ref import BAND_VOXELS, LEVELS, level_origin, level_voxel
+from .resources import SceneResources, glsl
+
+GROUP = 4
+BYTES = {"R16F": 2, "R32F": 4}
+_SHADERS = {}
+
+
+def _build_shader(fmt: str):
+    """The build shader for a level texture of format fmt (the image format must match it)."""
+    key = "build_" + fmt
+    if key not in _SHADERS:
+        info = gpu.types.GPUShaderCreateInfo()
+        info.local_group_size(GROUP, GROUP, GROUP)
+        SceneResources.declare(info, 0)
+        info.image(0, fmt, 'FLOAT_3D', 'gsdf_out', qualifiers={'WRITE'})
+        info.push_constant('VEC4', 'build_origin')
+        info.push_constant('VEC4', 'build_prev')
+        info.push_constant('FLOAT', 'build_band')
+        imod = ("ivec3 gsdf_imod(ivec3 a, int n)\n{\n"
+                "  return a - n * ivec3(floor(vec3(a) / float(n)));\n}\n")
+        info.compute_source(glsl("sdf_lib.glsl") + "\n" + imod + glsl("global_sdf_build.comp.glsl"))
+        _SHADERS[key] = gpu.shader.create_from_info(info)
+    return _SHADERS[key]
+
+
+def _flatten_shader():
+    if "flatten" not in _SHADERS:
+        info = gpu.types.GPUShaderCreateInfo()
+        info.local_group_size(8, 8, 1)
+        info.sampler(0, 'FLOAT_3D', 'src')
+        info.image(0, 'R32F', 'FLOAT_2D', 'dst', qualifiers={'WRITE'})
+        info.compute_source(
+            "void main() {\n"
+            "  ivec2 p = ivec2(gl_GlobalInvocationID.xy);\n"
+            "  int n = textureSize(src, 0).x;\n"
+            "  if (p.x >= n || p.y >= n * n) { return; }\n"
+            "  imageStore(dst, p, vec4(texelFetch(src, ivec3(p.x, p.y % n, p.y / n), 0).x));\n"
+            "}\n")
+        _SHADERS["flatten"] = gpu.shader.create_from_info(info)
+    return _SHADERS["flatten"]
+
+
+class GlobalSDF:
+    """4 clipmap levels of the scene SDF around the camera (see the module docstring)."""
+
+    def __init__(self, resources: SceneResources, n: int = 64, base_voxel: float = 0.1,
+                 fmt: str = 'R16F', levels: int = LEVELS, band_voxels: float = BAND_VOXELS):
+        if fmt not in BYTES:
+            raise ValueError(f"format {fmt!r}: use one of {sorted(BYTES)}")
+        if levels != LEVELS:
+            raise ValueError(f"global_sdf_lib.glsl samples exactly {LEVELS} levels")
+        self.resources = resources
+        self.n, self.base_voxel, self.format, self.band_voxels = int(n), float(base_voxel), fmt, float(band_voxels)
+        self.voxels = [level_voxel(base_voxel, k) for k in range(levels)]
+        self.textures = [gpu.types.GPUTexture((n, n, n), format=fmt) for _ in range(levels)]
+        self.origins = [None] * levels           # first world cell of each level, None: never built
+        self.dirty = [True] * levels             # objects changed since the level's last build
+        self.last_update = [None] * levels       # frame of the last build/scroll
+        self.log = []                            # (frame, level, 'build' | 'scroll', seconds)
+
+    # --- building --------------------------------------------------------------------------
+    def set_resources(self, resources: SceneResources):
+        """New mesh-SDF textures (objects moved / re-baked): every level is rebuilt when due."""
+        self.resources = resources
+        self.dirty = [True] * len(self.dirty)
+
+    def _dispatch(self, level: int, origin, prev):
+        sh = _build_shader(self.format)
+        self.resources.bind(sh)
+        sh.image('gsdf_out', self.textures[level])
+        v = self.voxels[level]
+        sh.uniform_float('build_origin', (*map(float, origin), v))
+        sh.uniform_float('build_prev', (*map(float, prev), 1.0) if prev is not None else (0.0, 0.0, 0.0, 0.0))
+        sh.uniform_float('build_band', self.band_voxels * v)
+        g = -(-self.n // GROUP)
+        gpu.compute.dispatch(sh, g, g, g)
+
+    def update(self, camera_pos, frame: int, objects_changed: bool = False) -> list:
+        """Refresh the levels due this frame; returns [(level, 'build' | 'scroll')] done."""
+        if objects_changed:
+            self.dirty = [True] * len(self.dirty)
+        done = []
+        for k, v in enumerate(self.voxels):
+            first = self.origins[k] is None
+            if not first and int(frame) % (1 << k):
+                continue                                  # not this level's frame
+            origin = level_origin(camera_pos, v, self.n)
+            moved = origin != self.origins[k]
+            if not (first or self.dirty[k] or moved):
+                continue
+            t0 = time.perf_counter()
+            full = first or self.dirty[k] or max(abs(a - b) for a, b in zip(origin, self.origins[k])) >= self.n
+            self._dispatch(k, origin, None if full else self.origins[k])
+            kind = "build" if full else "scroll"
+            self.origins[k], self.dirty[k], self.last_update[k] = origin, False, int(frame)
+            self.log.append((int(frame), k, kind, time.perf_counter() - t0))
+            done.append((k, kind))
+        return done
+
+    def build_all(self, camera_pos):
+        """Build every level now around camera_pos (whatever the frame)."""
+        self.dirty = [True] * len(self.dirty)
+        self.origins = [None] * len(self.origins)
+        return self.update(camera_pos, 0)
+
+    # --- reading ---------------------------------------------------------------------------
+    def read_level(self, level: int) -> np.ndarray:
+        """float32 [n, n, n] ([z, y, x]) texels of one level (waits for the GPU).
+
+        GPUTexture.read() of a 3D texture returns its first slice only (Blender 5.0.1 sizes the
+        buffer width * height), so the level is first copied into an n x n^2 2D R32F texture."""
+        n = self.n
+        flat = gpu.types.GPUTexture((n, n * n), format='R32F')
+        sh = _flatten_shader()
+        sh.uniform_sampler('src', self.textures[level])
+        sh.image('dst', flat)
+        gpu.compute.dispatch(sh, -(-n // 8), -(-n * n // 8), 1)
+        return np.asarray(flat.read().to_list(), np.float32).reshape(n, n, n)
+
+    def stats(self) -> dict:
+        """GPU bytes per level from the allocated textures' sizes and format."""
+        out = {}
+        for k, tex in enumerate(self.textures):
+            w, h, d = tex.width, tex.height, getattr(tex, "depth", self.n)
+            out[f"level{k}"] = int(w * h * d * BYTES[self.format])
+        out["total"] = sum(out.values())
+        return out
+
+    # --- sampling from other passes ----------------------------------------------------------
+    @staticmethod
+    def declare(info, first_slot: int) -> int:
+        """Declare global_sdf_lib.glsl's samplers and push constants; returns the next free slot."""
+        for k in range(LEVELS):
+            info.sampler(first_slot + k, 'FLOAT_3D', f'gsdf_level{k}')
+        for k in range(LEVELS):
+            info.push_constant('VEC4', f'gsdf_origin{k}')
+        info.push_constant('FLOAT', 'gsdf_band_voxels')
+        return first_slot + LEVELS
+
+    def bind(self, shader):
+        if any(o is None for o in self.origins):
+            raise RuntimeError("GlobalSDF.bind before every level was built (call update first)")
+        for k, tex in enumerate(self.textures):
+            shader.uniform_sampler(f'gsdf_level{k}', tex)
+            shader.uniform_float(f'gsdf_origin{k}', (*map(float, self.origins[k]), self.voxels[k]))
+        shader.uniform_float('gsdf_band_voxels', self.band_voxels)
+
+
+# --- the hybrid trace pass (tests and the engine's future global trace) -----------------------
+TRACE_MAIN = """
+void main()
+{
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(trace_out);
+  if (px.x >= size.x || px.y >= size.y) {
+    return;
+  }
+  vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
+  vec4 a = inv_view_proj * vec4(ndc, -1.0, 1.0);
+  vec4 b = inv_view_proj * vec4(ndc, 1.0, 1.0);
+  vec3 ro = a.xyz / a.w;
+  vec3 rd = normalize(b.xyz / b.w - ro);
+  int steps, global_steps;
+  float hit = trace_hybrid(ro, rd, t_max, max_steps, steps, global_steps);
+  imageStore(trace_out, px, vec4(hit, float(steps), float(global_steps), 0.0));
+}
+"""
+
+
+def hybrid_trace_shader():
+    if "trace" not in _SHADERS:
+        info = gpu.types.GPUShaderCreateInfo()
+        info.local_group_size(8, 8, 1)
+        slot = SceneResources.declare(info, 0)
+        GlobalSDF.declare(info, slot)
+        info.image(0, 'RGBA32F', 'FLOAT_2D', 'trace_out', qualifiers={'WRITE'})
+        info.push_constant('MAT4', 'inv_view_proj')
+        info.push_constant('FLOAT', 't_max')
+        info.push_constant('INT', 'max_steps')
+        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("global_sdf_lib.glsl") + "\n" + TRACE_MAIN)
+        _SHADERS["trace"] = gpu.shader.create_from_info(info)
+    return _SHADERS["trace"]
+
+
+def trace_hybrid(gsdf: GlobalSDF, inv_view_proj, width: int, height: int, t_max: float,
+                 max_steps: int = 512) -> dict:
+    """One trace_hybrid ray per pixel (rays as sdf_trace / reference.camera_rays).
+    Returns {'hit' (-1 miss), 'steps', 'global_steps' [h, w], 'seconds'}."""
+    import mathutils
+
+    sh = hybrid_trace_shader()
+    t0 = time.perf_counter()
+    out = gpu.types.GPUTexture((width, height), format='RGBA32F')
+    gsdf.resources.bind(sh)
+    gsdf.bind(sh)
+    sh.image('trace_out', out)
+    sh.uniform_float('inv_view_proj', mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
+    sh.uniform_float('t_max', float(t_max))
+    sh.uniform_int('max_steps', int(max_steps))
+    gpu.compute.dispatch(sh, -(-width // 8), -(-height // 8), 1)
+    data = np.asarray(out.read().to_list(), np.float32).reshape(height, width, 4)
+    return {"hit": data[..., 0].copy(), "steps": data[..., 1].astype(np.int32),
+            "global_steps": data[..., 2].astype(np.int32), "seconds": time.perf_counter() - t0}

@@ -1,0 +1,63 @@
+"""Numpy twins of the global SDF clipmaps (no bpy, no gpu): layout and the CPU reference values.
+
+A level of voxel size `v` and N^3 voxels starts at integer world cell `origin` =
+floor(camera / v) - N // 2 (the camera's cell is the level's centre cell, snapped to the level's
+own grid). World cell c has its centre at (c + 0.5) * v and lives in texel c mod N (toroidal), so
+a scroll moves no texel that stays inside the level.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+LEVELS = 4
+BAND_VOXELS = 4.0
+
+
+def level_voxel(base: float, level: int) -> float:
+    return float(base) * (2 ** int(level))
+
+
+def level_origin(camera, voxel: float, n: int) -> tuple:
+    """First world cell (x, y, z) of a level of voxel size `voxel` and n^3 voxels around camera."""
+    c = np.floor(np.asarray(camera, np.float64) / float(voxel)).astype(np.int64)
+    return tuple(int(v) for v in c - n // 2)
+
+
+def texel_cells(origin, n: int) -> np.ndarray:
+    """int64 [n, n, n, 3] world cell (x, y, z) held by each texel, array order [z, y, x] as read back."""
+    t = np.arange(n)
+    o = np.asarray(origin, np.int64)
+    cx, cy, cz = (o[i] + np.mod(t - o[i], n) for i in range(3))
+    z, y, x = np.meshgrid(cz, cy, cx, indexing="ij")
+    return np.stack([x, y, z], axis=-1)
+
+
+def texel_centres(origin, n: int, voxel: float) -> np.ndarray:
+    """float64 [n, n, n, 3] world centres of each texel's cell ([z, y, x] order)."""
+    return (texel_cells(origin, n) + 0.5) * float(voxel)
+
+
+def scene_sdf(meshes: dict, instances, points, mip: int = 0) -> np.ndarray:
+    """World distance lower bound at world points: min over instances of MeshSDF.sample in the
+    instance's local space times the smallest singular value of its 3x3 (as sdf_scene does)."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    best = np.full(len(p), np.inf)
+    for inst in instances:
+        mw = np.asarray(inst.matrix_world, np.float64)
+        inv = np.linalg.inv(mw)
+        scale = float(np.linalg.svd(mw[:3, :3], compute_uv=False).min())
+        d = meshes[inst.mesh].sample(p @ inv[:3, :3].T + inv[:3, 3], mip=mip) * scale
+        best = np.minimum(best, d)
+    return best
+
+
+def level_reference(meshes: dict, instances, origin, n: int, voxel: float,
+                    band_voxels: float = BAND_VOXELS) -> tuple:
+    """(stored values min(d, band) float64 [n, n, n] ([z, y, x]), raw d) of one level."""
+    d = scene_sdf(meshes, instances, texel_centres(origin, n, voxel)).reshape(n, n, n)
+    return np.minimum(d, band_voxels * voxel), d
+
+
+def due_levels(frame: int, levels: int = LEVELS) -> list:
+    """Levels whose refresh slot is this frame: level k every 2^k frames."""
+    return [k for k in range(levels) if int(frame) % (1 << k) == 0]

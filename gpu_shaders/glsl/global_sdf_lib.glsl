@@ -1,0 +1,142 @@
+/* Lumen GI: sampling the global SDF (4 clipmap levels around the camera) and the hybrid trace.
+ *
+ * Resources (declared by GlobalSDF.declare, bound by GlobalSDF.bind, gpu_shaders/global_sdf.py):
+ *   sampler3D gsdf_level0..3   R16F/R32F, N^3, toroidally addressed (see global_sdf_build.comp.glsl)
+ *   vec4      gsdf_origin0..3  xyz: the level's first world cell (integers), w: its voxel size (m)
+ *   float     gsdf_band_voxels values are clamped to min(d, band_voxels * voxel) per level
+ * trace_hybrid also needs sdf_lib.glsl (the mesh SDFs). All reads are texelFetch; the trilinear
+ * filter is done here in float32 (the toroidal wrap rules out the hardware filter).
+ */
+
+#define GSDF_LEVELS 4
+#define GSDF_MESH_SPLIT 1.8   /* metres: mesh SDFs before, the global SDF beyond (lecture 21) */
+#define GSDF_FAR 1e30
+
+/* a mod n in [0, n) for negative a too (GLSL % is undefined for negative operands). */
+ivec3 gsdf_imod(ivec3 a, int n)
+{
+  return a - n * ivec3(floor(vec3(a) / float(n)));
+}
+
+vec4 gsdf_origin(int level)
+{
+  if (level == 0) { return gsdf_origin0; }
+  if (level == 1) { return gsdf_origin1; }
+  if (level == 2) { return gsdf_origin2; }
+  return gsdf_origin3;
+}
+
+float gsdf_fetch(int level, ivec3 t)
+{
+  if (level == 0) { return texelFetch(gsdf_level0, t, 0).x; }
+  if (level == 1) { return texelFetch(gsdf_level1, t, 0).x; }
+  if (level == 2) { return texelFetch(gsdf_level2, t, 0).x; }
+  return texelFetch(gsdf_level3, t, 0).x;
+}
+
+/* Trilinear sample of one level at world p; false when p is not inside the level's voxel centres. */
+bool gsdf_level_sample(int level, vec3 p, out float d)
+{
+  vec4 info = gsdf_origin(level);
+  int n = textureSize(gsdf_level0, 0).x;
+  vec3 g = p / info.w - 0.5 - info.xyz;        /* relative cell coordinates, centres at integers */
+  d = GSDF_FAR;
+  if (any(lessThan(g, vec3(0.0))) || any(greaterThan(g, vec3(float(n - 1))))) {
+    return false;
+  }
+  ivec3 i0 = min(ivec3(floor(g)), ivec3(n - 2));
+  vec3 f = g - vec3(i0);
+  ivec3 cell = ivec3(round(info.xyz)) + i0;
+  ivec3 a = gsdf_imod(cell, n);
+  ivec3 b = gsdf_imod(cell + 1, n);
+  float c000 = gsdf_fetch(level, ivec3(a.x, a.y, a.z));
+  float c001 = gsdf_fetch(level, ivec3(a.x, a.y, b.z));
+  float c010 = gsdf_fetch(level, ivec3(a.x, b.y, a.z));
+  float c011 = gsdf_fetch(level, ivec3(a.x, b.y, b.z));
+  float c100 = gsdf_fetch(level, ivec3(b.x, a.y, a.z));
+  float c101 = gsdf_fetch(level, ivec3(b.x, a.y, b.z));
+  float c110 = gsdf_fetch(level, ivec3(b.x, b.y, a.z));
+  float c111 = gsdf_fetch(level, ivec3(b.x, b.y, b.z));
+  float c00 = mix(c000, c001, f.z);
+  float c01 = mix(c010, c011, f.z);
+  float c10 = mix(c100, c101, f.z);
+  float c11 = mix(c110, c111, f.z);
+  d = mix(mix(c00, c01, f.y), mix(c10, c11, f.y), f.x);
+  return true;
+}
+
+/* Global SDF at world p from the finest level holding p; when that value is saturated at its
+ * level's band, coarser levels (larger bands) are tried for a longer step. level: the level the
+ * value came from (-1 and GSDF_FAR outside every level); voxel: its voxel size. */
+float global_sdf_sample(vec3 p, out int level, out float voxel)
+{
+  float best = GSDF_FAR;
+  level = -1;
+  voxel = 1.0;
+  for (int k = 0; k < GSDF_LEVELS; k++) {
+    float d;
+    if (!gsdf_level_sample(k, p, d)) {
+      continue;
+    }
+    float vk = gsdf_origin(k).w;
+    if (level < 0 || d > best) {
+      best = d;
+      level = k;
+      voxel = vk;
+    }
+    if (d < 0.999 * gsdf_band_voxels * vk) {
+      break;                 /* not saturated: the finest informative value */
+    }
+  }
+  return best;
+}
+
+float global_sdf_sample(vec3 p)
+{
+  int level;
+  float voxel;
+  return global_sdf_sample(p, level, voxel);
+}
+
+/* Sphere trace from origin along unit dir up to tmax: the mesh SDFs (sdf_scene) while
+ * t < GSDF_MESH_SPLIT, the global SDF beyond. Stepping as sdf_trace.comp.glsl: hit when
+ * d <= 0.05 voxel, advance by max(d, 0.1 voxel), the voxel being the nearest object's (mesh part)
+ * or the sampled level's (global part). Leaving the coarsest clipmap is a miss. Returns the hit t
+ * or -1; steps: samples taken; global_steps: of those, global SDF samples. */
+float trace_hybrid(vec3 origin, vec3 dir, float tmax, int max_steps, out int steps, out int global_steps)
+{
+  float t = 0.0;
+  steps = 0;
+  global_steps = 0;
+  while (steps < max_steps && t <= tmax) {
+    vec3 p = origin + t * dir;
+    float d, h;
+    steps++;
+    if (t < GSDF_MESH_SPLIT) {
+      int nearest;
+      d = sdf_scene(p, h, nearest);
+      if (d <= 0.05 * h) {
+        return t;
+      }
+    }
+    else {
+      int level;
+      global_steps++;
+      d = global_sdf_sample(p, level, h);
+      if (level < 0) {
+        return -1.0;
+      }
+      if (d <= 0.05 * h) {
+        return t;
+      }
+    }
+    t += max(d, 0.1 * h);
+  }
+  return -1.0;
+}
+
+float trace_hybrid(vec3 origin, vec3 dir, float tmax)
+{
+  int steps, global_steps;
+  return trace_hybrid(origin, dir, tmax, 512, steps, global_steps);
+}
