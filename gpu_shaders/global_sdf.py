@@ -143,8 +143,8 @@ class GlobalSDF:
         """GPU bytes per level from the allocated textures' sizes and format."""
         out = {}
         for k, tex in enumerate(self.textures):
-            w, h, d = tex.width, tex.height, getattr(tex, "depth", self.n)
-            out[f"level{k}"] = int(w * h * d * BYTES[self.format])
+            # GPUTexture exposes width, height and format; the depth is the n it was created with
+            out[f"level{k}"] = int(tex.width * tex.height * self.n * BYTES[tex.format])
         out["total"] = sum(out.values())
         return out
 
@@ -223,3 +223,46 @@ def trace_hybrid(gsdf: GlobalSDF, inv_view_proj, width: int, height: int, t_max:
     data = np.asarray(out.read().to_list(), np.float32).reshape(height, width, 4)
     return {"hit": data[..., 0].copy(), "steps": data[..., 1].astype(np.int32),
             "global_steps": data[..., 2].astype(np.int32), "seconds": time.perf_counter() - t0}
+
+
+SAMPLE_MAIN = """
+void main()
+{
+  int i = int(gl_GlobalInvocationID.x);
+  int count = textureSize(points, 0).x;
+  if (i >= count) {
+    return;
+  }
+  int level;
+  float voxel;
+  float d = global_sdf_sample(texelFetch(points, ivec2(i, 0), 0).xyz, level, voxel);
+  imageStore(sample_out, ivec2(i, 0), vec4(d, float(level), voxel, 0.0));
+}
+"""
+
+
+def sample_points(gsdf: GlobalSDF, points) -> dict:
+    """global_sdf_sample at world points (float [P, 3]): {'d', 'level' (-1 outside), 'voxel'}."""
+    if "sample" not in _SHADERS:
+        info = gpu.types.GPUShaderCreateInfo()
+        info.local_group_size(64, 1, 1)
+        info.sampler(0, 'FLOAT_2D', 'points')
+        GlobalSDF.declare(info, 1)
+        info.image(0, 'RGBA32F', 'FLOAT_2D', 'sample_out', qualifiers={'WRITE'})
+        info.compute_source(glsl("global_sdf_lib.glsl") + "\n" + SAMPLE_MAIN)
+        _SHADERS["sample"] = gpu.shader.create_from_info(info)
+    sh = _SHADERS["sample"]
+    from .resources import float_buffer
+
+    p = np.asarray(points, np.float32).reshape(-1, 3)
+    count = len(p)
+    rgba = np.zeros((count, 4), np.float32)
+    rgba[:, :3] = p
+    src = gpu.types.GPUTexture((count, 1), format='RGBA32F', data=float_buffer(rgba))
+    out = gpu.types.GPUTexture((count, 1), format='RGBA32F')
+    sh.uniform_sampler('points', src)
+    gsdf.bind(sh)
+    sh.image('sample_out', out)
+    gpu.compute.dispatch(sh, -(-count // 64), 1, 1)
+    data = np.asarray(out.read().to_list(), np.float32).reshape(count, 4)
+    return {"d": data[:, 0].copy(), "level": data[:, 1].astype(np.int32), "voxel": data[:, 2].copy()}

@@ -61,3 +61,39 @@ def level_reference(meshes: dict, instances, origin, n: int, voxel: float,
 def due_levels(frame: int, levels: int = LEVELS) -> list:
     """Levels whose refresh slot is this frame: level k every 2^k frames."""
     return [k for k in range(levels) if int(frame) % (1 << k) == 0]
+
+
+def sample_levels(levels, origins, voxels, points, band_voxels: float = BAND_VOXELS) -> tuple:
+    """Numpy twin of global_sdf_sample on read-back levels ([L][n, n, n], [z, y, x]):
+    (d, level) per point; level -1 and d = 1e30 outside every level."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    n = levels[0].shape[0]
+    best = np.full(len(p), 1e30)
+    lev = np.full(len(p), -1, np.int64)
+    open_ = np.ones(len(p), bool)                 # still looking at coarser levels
+    for k, (vol, o, v) in enumerate(zip(levels, origins, voxels)):
+        g = p / v - 0.5 - np.asarray(o, np.float64)
+        inside = open_ & np.all((g >= 0) & (g <= n - 1), axis=1)
+        if not inside.any():
+            continue
+        gi = g[inside]
+        i0 = np.minimum(np.floor(gi).astype(np.int64), n - 2)
+        f = gi - i0
+        cell = np.asarray(o, np.int64) + i0
+        a, b = np.mod(cell, n), np.mod(cell + 1, n)
+        d = np.zeros(len(gi))
+        for dx in (0, 1):
+            wx = f[:, 0] if dx else 1 - f[:, 0]
+            tx = b[:, 0] if dx else a[:, 0]
+            for dy in (0, 1):
+                wy = f[:, 1] if dy else 1 - f[:, 1]
+                ty = b[:, 1] if dy else a[:, 1]
+                for dz in (0, 1):
+                    wz = f[:, 2] if dz else 1 - f[:, 2]
+                    tz = b[:, 2] if dz else a[:, 2]
+                    d += wx * wy * wz * np.asarray(vol, np.float64)[tz, ty, tx]
+        idx = np.flatnonzero(inside)
+        take = (lev[idx] < 0) | (d > best[idx])
+        best[idx[take]], lev[idx[take]] = d[take], k
+        open_[idx[d < 0.999 * band_voxels * v]] = False
+    return best, lev

@@ -4,7 +4,8 @@
  *   sampler3D gsdf_level0..3   R16F/R32F, N^3, toroidally addressed (see global_sdf_build.comp.glsl)
  *   vec4      gsdf_origin0..3  xyz: the level's first world cell (integers), w: its voxel size (m)
  *   float     gsdf_band_voxels values are clamped to min(d, band_voxels * voxel) per level
- * trace_hybrid also needs sdf_lib.glsl (the mesh SDFs). All reads are texelFetch; the trilinear
+ * trace_hybrid needs sdf_lib.glsl (the mesh SDFs) included before this file; without it only the
+ * sampling functions are defined. All reads are texelFetch; the trilinear
  * filter is done here in float32 (the toroidal wrap rules out the hardware filter).
  */
 
@@ -98,6 +99,8 @@ float global_sdf_sample(vec3 p)
   return global_sdf_sample(p, level, voxel);
 }
 
+#ifdef SDF_BRICK   /* sdf_lib.glsl is included */
+
 /* Sphere trace from origin along unit dir up to tmax: the mesh SDFs (sdf_scene) while
  * t < GSDF_MESH_SPLIT, the global SDF beyond. Stepping as sdf_trace.comp.glsl: hit when
  * d <= 0.05 voxel, advance by max(d, 0.1 voxel), the voxel being the nearest object's (mesh part)
@@ -140,3 +143,5 @@ float trace_hybrid(vec3 origin, vec3 dir, float tmax)
   int steps, global_steps;
   return trace_hybrid(origin, dir, tmax, 512, steps, global_steps);
 }
+
+#endif

@@ -23,7 +23,8 @@ sys.path[:0] = [str(HERE.parent / "blender"), str(HERE.parent / "core")]
 from blender_runner import run_python  # noqa: E402
 
 from gpu_shaders.global_sdf_ref import (BAND_VOXELS, due_levels, level_origin,  # noqa: E402
-                                        level_reference, level_voxel, texel_cells)
+                                        level_reference, level_voxel, sample_levels, scene_sdf,
+                                        texel_cells)
 from lumen_addon.cache import read_cache  # noqa: E402
 
 SETUP = f"""
@@ -111,7 +112,12 @@ def job(depsgraph):
     out["origins1"] = [list(o) for o in g.origins]
     after = [g.read_level(k) for k in range(4)]
     out["stats"] = g.stats()
-    np.savez("levels.npz", before=np.stack(before), after=np.stack(after))
+    rng = np.random.default_rng(7)
+    pts = CAM1 + rng.uniform(-0.55, 0.55, (4000, 3)) * N * BASE * 8     # every level, and outside
+    pts[:1000] = CAM1 + rng.uniform(-3.0, 3.0, (1000, 3)) * BASE * 8     # near the camera too
+    smp = global_sdf.sample_points(g, pts)
+    np.savez("levels.npz", before=np.stack(before), after=np.stack(after), points=pts,
+             sample_d=smp["d"], sample_level=smp["level"])
 
     # cadence: objects change every frame, then the camera moves far every frame
     c = global_sdf.GlobalSDF(res, n=8, base_voxel=BASE, fmt="R32F")
@@ -184,6 +190,23 @@ def test_clipmaps_match_cpu_scroll_and_cadence(tmp_path):
     # the moves in 17..32 leave nothing dirty after frame 32: a still camera rebuilds nothing
     assert all(not d for d in res["cadence_still"].values())
 
+    # global_sdf_sample (level choice, toroidal wrap, trilinear) against its numpy twin on the
+    # read-back levels, and against the CPU mesh SDFs where those are inside the chosen band
+    voxels = [level_voxel(base, k) for k in range(4)]
+    twin_d, twin_level = sample_levels(lv["after"], res["origins1"], voxels, lv["points"])
+    np.testing.assert_array_equal(lv["sample_level"], twin_level)
+    assert set(np.unique(twin_level)) == {-1, 0, 1, 2, 3}
+    inside = twin_level >= 0
+    np.testing.assert_allclose(lv["sample_d"][inside], twin_d[inside], atol=1e-4, rtol=1e-5)
+    cpu = scene_sdf(bake.meshes, bake.instances, lv["points"][inside])
+    vk = np.array(voxels)[twin_level[inside]]
+    inband = cpu < BAND_VOXELS * vk - vk
+    err = np.abs(lv["sample_d"][inside] - cpu)[inband]
+    frac = float((err <= vk[inband]).mean())
+    report.append(f"global_sdf_sample at {inside.sum()} points ({inband.sum()} in band): "
+                  f"|d - cpu| <= level voxel on {frac:.4%}, max {err.max() / vk[inband][err.argmax()]:.3f} voxel")
+    assert inband.sum() > 200 and frac >= 0.99
+
     stats = res["stats"]
     assert stats["level0"] == n ** 3 * 2 and stats["total"] == 4 * n ** 3 * 2
     print("\n".join(report))
@@ -207,6 +230,13 @@ def job(depsgraph):
     g.update(np.array(cam.matrix_world.translation), 0)
     g.read_level(3)
     out["build_seconds"] = time.perf_counter() - t
+    per = []
+    for k in range(4):                       # one level rebuilt and read back, each
+        t = time.perf_counter()
+        g._dispatch(k, g.origins[k], None)
+        g.read_level(k)
+        per.append(round(time.perf_counter() - t, 4))
+    out["level_build_read_seconds"] = per
     inv_vp, clip_end = camera_matrices(depsgraph, scene.camera, SIZE, SIZE)
     mesh = sdf_trace.trace(res, inv_vp, SIZE, SIZE, t_max=clip_end)
     hyb = global_sdf.trace_hybrid(g, inv_vp, SIZE, SIZE, t_max=clip_end)
