@@ -10,8 +10,20 @@ with gpu batches), uploads the bake's SDFs (resources.py) and runs the direct li
 (Blender 5.0's own names, so the passes line up with Cycles' in the compositor and in EXRs),
 hence Combined = Diffuse Color x Diffuse Direct + Emission as in Cycles (no indirect light yet).
 
-Debug view: the scene custom property "lumen_preview_view" = "DEPTH" instead runs only the SDF
-trace pass and writes hit depth as grey to Combined (near = bright, far = dark, miss = black).
+Debug views (`scene.lumen.debug_view`, in the N-panel) replace what Combined shows:
+    COMBINED  the lit image          NORMAL  world normal * 0.5 + 0.5
+    ALBEDO    the G-buffer albedo    DIRECT  Diffuse Direct
+    DEPTH     only the SDF trace pass: hit depth as grey (near = bright, far = dark, miss = black)
+    STEPS     only the SDF trace pass: sphere-tracing steps per pixel as a blue-green-red heat map
+(the older scene custom property "lumen_preview_view" = "DEPTH" still selects DEPTH).
+
+GPU inputs live in a per-scene scene_state.SceneState shared by render() and the viewport: a
+frame re-uploads only what changed (the object table for moved objects, the light rows for
+changed lights, the brick atlas and indirection only when the set of baked meshes changed).
+`view_update` reads depsgraph.updates (transform / geometry / light / world ids) into
+LAST_VIEW_UPDATE and tags a redraw; `view_draw` runs the same `frame()` as render() for the
+viewport's matrices and region size and draws Combined through Blender's display transform.
+
 It works headless: Blender gives a RenderEngine with bl_use_gpu_context a GPU context in
 background mode too (Mesa llvmpipe).
 
@@ -26,12 +38,21 @@ import bpy
 import numpy as np
 
 from . import sdf_trace
-from .resources import SceneResources
+from .scene_state import state_for
 
 # Extra passes: (name in the render result, channels, channel ids, type).
 PASSES = (("Diffuse Direct", 3, "RGB", 'COLOR'), ("Diffuse Color", 3, "RGB", 'COLOR'),
           ("Normal", 3, "XYZ", 'VECTOR'))
-VIEW_PROPERTY = "lumen_preview_view"
+VIEW_PROPERTY = "lumen_preview_view"       # legacy: "DEPTH" selects the DEPTH debug view
+DEBUG_VIEWS = ("COMBINED", "DEPTH", "STEPS", "NORMAL", "ALBEDO", "DIRECT")
+TRACE_VIEWS = ("DEPTH", "STEPS")
+STEPS_FULL_SCALE = 128.0                    # STEPS heat map: red at this many steps
+
+# GPU bytes per resource of the last frame, by scene name (the N-panel reads it).
+MEMORY = {}
+# What the last view_update saw in depsgraph.updates (flags) and how often it ran.
+LAST_VIEW_UPDATE = {}
+_DISK_BAKES = {}                            # folder -> (mtime, bake): the viewport reads once
 
 # What the last render did (read by tests and scripts): trace output, camera, timings, memory.
 LAST_RENDER = {}
@@ -47,7 +68,13 @@ def scene_bake(scene):
         return bake, "memory"
     folder = bake_op.resolve_folder(scene.lumen.cache_dir)
     try:
-        return read_cache(folder), str(folder)
+        mtime = folder.stat().st_mtime_ns if folder.exists() else None
+        hit = _DISK_BAKES.get(str(folder))
+        if hit is not None and hit[0] == mtime:
+            return hit[1], str(folder)
+        bake = read_cache(folder)
+        _DISK_BAKES[str(folder)] = (mtime, bake)
+        return bake, str(folder)
     except CacheError as exc:
         raise RuntimeError(f"no Lumen bake for scene {scene.name!r}: {exc}") from exc
 
@@ -81,9 +108,85 @@ def depth_grey(hit: np.ndarray) -> np.ndarray:
     return rgba
 
 
+def steps_heat(steps: np.ndarray, full: float = STEPS_FULL_SCALE) -> np.ndarray:
+    """RGBA float [h, w, 4]: blue (few steps) -> green -> red (>= `full` steps)."""
+    t = np.clip(np.asarray(steps, np.float32) / full, 0.0, 1.0)
+    rgba = np.ones(t.shape + (4,), np.float32)
+    rgba[..., 0] = np.clip(2.0 * t - 1.0, 0.0, 1.0)
+    rgba[..., 1] = 1.0 - np.abs(2.0 * t - 1.0)
+    rgba[..., 2] = np.clip(1.0 - 2.0 * t, 0.0, 1.0)
+    return rgba
+
+
+def debug_view(scene) -> str:
+    settings = getattr(scene, "lumen", None)
+    view = getattr(settings, "debug_view", "COMBINED") if settings is not None else "COMBINED"
+    if view == "COMBINED" and scene.get(VIEW_PROPERTY) == "DEPTH":
+        view = "DEPTH"
+    return view
+
+
+def mesh_matrices(depsgraph) -> dict:
+    """{object name: world 4x4} of the evaluated mesh objects (the trace views' placement)."""
+    return {ob.original.name: np.array(ob.matrix_world, np.float64)
+            for ob in depsgraph.objects if ob.type == 'MESH'}
+
+
+def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="COMBINED"):
+    """One frame, for render() and view_draw alike: sync the scene state, run the passes.
+    Returns {pass name: float32 [h, w, C]} and fills LAST_RENDER."""
+    from ..operators.extract import extract_scene
+    from ..operators.lights import light_table, world_colour
+    from . import direct_light, gbuffer
+
+    t0 = time.perf_counter()
+    bake, source = scene_bake(scene)
+    lights = light_table(depsgraph)
+    if view in TRACE_VIEWS:
+        objects, warnings = None, []
+        matrices = mesh_matrices(depsgraph)
+    else:
+        objects, warnings = extract_scene(depsgraph)
+        matrices = {ob.name: ob.matrix_world for ob in objects}
+    t1 = time.perf_counter()
+    state = state_for(scene.name)
+    changes = state.sync(bake, matrices, lights)
+    res = state.resources
+    t2 = time.perf_counter()
+    MEMORY[scene.name] = state.stats()
+    LAST_RENDER.update(source=source, width=width, height=height, view=view,
+                       changes=sorted(changes), uploads=dict(state.uploads),
+                       gpu_bytes=state.stats(), bricks=res.packed.bricks,
+                       atlas_size=list(res.packed.atlas_size), upload_seconds=res.upload_seconds,
+                       extract_seconds=t1 - t0, sync_seconds=t2 - t1)
+    if view in TRACE_VIEWS:
+        inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
+        out = sdf_trace.trace(res, inv_vp, width, height, t_max=clip_end)
+        LAST_RENDER.update(out, inv_view_proj=inv_vp, t_max=clip_end)
+        img = depth_grey(out["hit"]) if view == "DEPTH" else steps_heat(out["steps"])
+        return {"Combined": img}
+    sky, sky_notes = world_colour(scene)
+    gbuf = gbuffer.render_gbuffer(objects, view_proj, width, height)
+    t3 = time.perf_counter()
+    out = direct_light.shade(res, gbuf, state.lights, sky, cam_pos, width, height)
+    t4 = time.perf_counter()
+    LAST_RENDER.update(
+        view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
+        sky=sky, notes=list(warnings) + sky_notes, triangles=gbuf["triangles"],
+        gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
+        direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
+        position=gbuf["position"], normal=gbuf["normal"], albedo=gbuf["albedo"],
+        emission=gbuf["emission"], direct=out["direct"], combined=out["combined"],
+        frame_seconds=t4 - t0)
+    shown = {"COMBINED": out["combined"], "DIRECT": out["direct"], "ALBEDO": gbuf["albedo"],
+             "NORMAL": gbuf["normal"] * 0.5 + 0.5}[view].copy()
+    shown[..., 3] = 1.0
+    return {"Combined": shown, "Diffuse Direct": out["direct"],
+            "Diffuse Color": gbuf["albedo"], "Normal": gbuf["normal"]}
+
+
 class LumenGIRenderEngine(bpy.types.RenderEngine):
-    """Lumen GI preview engine: G-buffer + SDF direct light (or the SDF trace depth debug view).
-    view_draw draws nothing yet."""
+    """Lumen GI preview engine: G-buffer + SDF direct light, or an SDF trace debug view."""
 
     bl_idname = "LUMEN_GI"
     bl_label = "Lumen GI"
@@ -100,12 +203,12 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         for name, channels, chan_id, _ in PASSES:
             self.add_pass(name, channels, chan_id, layer=layer)
         result = self.begin_result(0, 0, width, height, layer=layer)
-        passes = {}
         try:
-            if scene.get(VIEW_PROPERTY, "LIT") == "DEPTH":
-                passes["Combined"] = self._trace(depsgraph, scene, width, height)
-            else:
-                passes = self._lit(depsgraph, scene, width, height)
+            if scene.camera is None:
+                raise RuntimeError(f"scene {scene.name!r} has no camera")
+            vp, cam_pos, clip_end = view_projection(depsgraph, scene.camera, width, height)
+            passes = frame(depsgraph, scene, vp, cam_pos, clip_end, width, height,
+                           debug_view(scene))
         except Exception as exc:   # reported, never raised into Blender's render job
             import traceback
             self.report({'ERROR'}, f"Lumen GI: {exc}")
@@ -130,60 +233,57 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         for name, channels, chan_id, kind in PASSES:
             self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
 
-    def _lit(self, depsgraph, scene, width, height):
-        from ..operators.extract import extract_scene
-        from ..operators.lights import light_table, world_colour
-        from . import direct_light, gbuffer
-
-        if scene.camera is None:
-            raise RuntimeError(f"scene {scene.name!r} has no camera")
-        t0 = time.perf_counter()
-        objects, warnings = extract_scene(depsgraph)
-        lights = light_table(depsgraph)
-        sky, sky_notes = world_colour(scene)
-        t1 = time.perf_counter()
-        vp, cam_pos, clip_end = view_projection(depsgraph, scene.camera, width, height)
-        gbuf = gbuffer.render_gbuffer(objects, vp, width, height)
-        t2 = time.perf_counter()
-        bake, source = scene_bake(scene)
-        resources = SceneResources.from_bake(bake)
-        t3 = time.perf_counter()
-        out = direct_light.shade(resources, gbuf, lights, sky, cam_pos, width, height)
-        t4 = time.perf_counter()
-        LAST_RENDER.update(
-            view_proj=vp, cam_pos=cam_pos, width=width, height=height, source=source,
-            lights=lights, sky=sky, notes=[w for w in warnings] + sky_notes,
-            triangles=gbuf["triangles"], extract_seconds=t1 - t0, gbuffer_seconds=t2 - t1,
-            resources_seconds=t3 - t2, direct_seconds=t4 - t3,
-            direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
-            gpu_bytes=resources.stats(), position=gbuf["position"], normal=gbuf["normal"],
-            albedo=gbuf["albedo"], emission=gbuf["emission"], direct=out["direct"],
-            combined=out["combined"])
-        return {"Combined": out["combined"], "Diffuse Direct": out["direct"],
-                "Diffuse Color": gbuf["albedo"], "Normal": gbuf["normal"]}
-
-    def _trace(self, depsgraph, scene, width, height):
-        if scene.camera is None:
-            raise RuntimeError(f"scene {scene.name!r} has no camera")
-        t0 = time.perf_counter()
-        bake, source = scene_bake(scene)
-        t1 = time.perf_counter()
-        resources = SceneResources.from_bake(bake)
-        inv_vp, clip_end = camera_matrices(depsgraph, scene.camera, width, height)
-        out = sdf_trace.trace(resources, inv_vp, width, height, t_max=clip_end)
-        LAST_RENDER.update(out, inv_view_proj=inv_vp, t_max=clip_end, width=width, height=height,
-                           source=source, load_seconds=t1 - t0,
-                           pack_upload_seconds=time.perf_counter() - t1 - out["compile_seconds"]
-                           - out["trace_seconds"], upload_seconds=resources.upload_seconds,
-                           gpu_bytes=resources.stats(), bricks=resources.packed.bricks,
-                           atlas_size=list(resources.packed.atlas_size))
-        return depth_grey(out["hit"])
-
     def view_update(self, context, depsgraph):
-        pass
+        """Record what the depsgraph says changed; the next view_draw's frame() syncs the scene
+        state, which re-uploads only the resources those changes touch."""
+        flags = set()
+        for u in depsgraph.updates:
+            ident = u.id
+            if isinstance(ident, bpy.types.Object):
+                if u.is_updated_transform:
+                    flags.add("light" if ident.type == 'LIGHT' else "transform")
+                if u.is_updated_geometry:
+                    flags.add("geometry")
+            elif isinstance(ident, bpy.types.Light):
+                flags.add("light")
+            elif isinstance(ident, (bpy.types.Mesh, bpy.types.Material)):
+                flags.add("geometry")
+            elif isinstance(ident, bpy.types.World):
+                flags.add("world")
+        LAST_VIEW_UPDATE["flags"] = sorted(flags)
+        LAST_VIEW_UPDATE["count"] = LAST_VIEW_UPDATE.get("count", 0) + 1
+        if flags:
+            self.tag_redraw()
 
     def view_draw(self, context, depsgraph):
-        pass
+        """The viewport: frame() at the region size for the view's matrices, Combined drawn with
+        the display colour transform (Blender's RenderEngine template)."""
+        import gpu
+        from gpu_extras.batch import batch_for_shader
+
+        from .resources import float_buffer
+
+        scene = depsgraph.scene
+        w, h = context.region.width, context.region.height
+        rd = context.region_data
+        try:
+            img = frame(depsgraph, scene, np.array(rd.perspective_matrix, np.float64),
+                        np.array(rd.view_matrix.inverted().translation, np.float64),
+                        float(context.space_data.clip_end), w, h, debug_view(scene))["Combined"]
+        except Exception as exc:
+            LAST_RENDER["error"] = str(exc)
+            return
+        tex = gpu.types.GPUTexture((w, h), format='RGBA16F', data=float_buffer(img))
+        shader = gpu.shader.from_builtin('IMAGE')
+        batch = batch_for_shader(shader, 'TRI_FAN', {
+            "pos": ((0, 0), (w, 0), (w, h), (0, h)),
+            "texCoord": ((0, 0), (1, 0), (1, 1), (0, 1))})
+        gpu.state.blend_set('ALPHA_PREMULT')
+        self.bind_display_space_shader(scene)
+        shader.uniform_sampler("image", tex)
+        batch.draw(shader)
+        self.unbind_display_space_shader()
+        gpu.state.blend_set('NONE')
 
 
 def register():

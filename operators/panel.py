@@ -58,6 +58,21 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
         if s.last_status:
             box.label(text=s.last_status)
 
+        if scene.render.engine == 'LUMEN_GI':
+            box = layout.box()
+            box.label(text="Preview Engine", icon='SHADING_RENDERED')
+            box.prop(s, "debug_view")
+            from ..gpu_shaders.engine import MEMORY
+            memory = MEMORY.get(scene.name)
+            grid = box.column(align=True)
+            if memory:
+                for label, value in list(memory.items()) + [("total", sum(memory.values()))]:
+                    row = grid.split(factor=0.5)
+                    row.label(text=f"GPU {label}")
+                    row.label(text=human_bytes(value))
+            else:
+                grid.label(text="GPU memory: render once to measure")
+
         layout.operator("lumen.export_cache", icon='EXPORT')
         layout.operator("lumen.open_atlas", icon='IMAGE_DATA')
 

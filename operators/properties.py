@@ -4,7 +4,8 @@ The `last_*` scene properties are written by the bake operator only; they live i
 the panel still shows what the cache on disk holds after the file is reopened.
 """
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
+                       StringProperty)
 
 from ..lumen_addon.sdf import DEFAULT_MAX_RESOLUTION, HARD_MAX_RESOLUTION
 
@@ -47,6 +48,16 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
         min=0.0, max=1.0, subtype='FACTOR')
     last_seconds: FloatProperty(name="Seconds", description="Duration of the last bake", min=0.0)
     last_status: StringProperty(name="Status", description="Outcome of the last bake or export")
+
+    debug_view: EnumProperty(
+        name="Debug View", description="What the Lumen GI engine shows in Combined",
+        items=(('COMBINED', "Combined", "Lit image: albedo x direct light + emission"),
+               ('DEPTH', "Hit Distance", "SDF trace only: hit depth as grey"),
+               ('STEPS', "Trace Steps", "SDF trace only: sphere-tracing steps as a heat map"),
+               ('NORMAL', "Normal", "G-buffer world normal"),
+               ('ALBEDO', "Albedo", "G-buffer base colour"),
+               ('DIRECT', "Direct Light", "Diffuse direct light (albedo excluded)")),
+        default='COMBINED')
 
 
 class LumenObjectSettings(bpy.types.PropertyGroup):

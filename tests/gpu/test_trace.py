@@ -50,7 +50,7 @@ cam.location = (0.3, -3.5, 1.2)
 cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.0)) - cam.location).to_track_quat("-Z", "Y").to_euler()
 cam.data.clip_end = 20.0
 scene.render.engine = "LUMEN_GI"
-scene[engine.VIEW_PROPERTY] = "DEPTH"   # the trace debug view: hit depth as grey
+scene.lumen.debug_view = "DEPTH"   # the trace debug view: hit depth as grey
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 

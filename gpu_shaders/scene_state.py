@@ -1,0 +1,132 @@
+"""The engine's per-scene GPU inputs and what a change re-uploads (render and viewport share it).
+
+`SceneState.sync(bake, matrices, lights)` compares a new extraction with what is on the GPU:
+    bake         the scene's bake (lumen_addon.bake.SceneBake): which meshes (by content hash)
+                 are baked, and the instances (name, mesh hash, matrix at bake time)
+    matrices     {instance name: world 4x4} of the current scene (extract_scene names); an
+                 instance whose name is absent keeps the matrix it had in the bake
+    lights       operators.lights.light_table rows (float32 [n, 16])
+and re-uploads only what changed:
+    atlas + indirection (+ objects)   the set of baked mesh hashes changed (a re-bake that changed
+                                      some mesh); a re-bake with the same meshes uploads nothing
+    objects                           an instance moved / appeared / vanished (transform edits)
+    lights                            the light rows changed
+`plan()` is the decision alone (numpy only, no gpu); `sync()` plans and uploads (needs a GPU
+context). `uploads` counts uploads per resource, `last_changes` is the set of the last sync.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .packing import local_to_world_scale, object_row
+
+RESOURCES = ("atlas", "indirection", "objects", "lights")
+
+# One state per scene name: F12 renders create a new RenderEngine each time, so the state lives
+# at module level and repeated renders (and the viewport) of a scene share it.
+STATES = {}
+
+
+def state_for(scene_name: str) -> "SceneState":
+    st = STATES.get(scene_name)
+    if st is None:
+        st = STATES[scene_name] = SceneState()
+    return st
+
+
+def instance_table(bake, matrices: dict):
+    """(names, mesh hashes, float64 [n, 4, 4] world matrices) of the bake's instances, placed
+    where the current scene has them."""
+    names, keys, mats = [], [], []
+    for inst in bake.instances:
+        names.append(inst.name)
+        keys.append(inst.mesh)
+        m = matrices.get(inst.name)
+        mats.append(np.asarray(inst.matrix_world if m is None else m, np.float64))
+    arr = np.stack(mats) if mats else np.zeros((0, 4, 4))
+    return names, keys, arr
+
+
+class SceneState:
+    def __init__(self):
+        self.uploads = {name: 0 for name in RESOURCES}
+        self.syncs = 0
+        self.last_changes = set()
+        self.mesh_keys = None        # frozenset of baked mesh hashes on the GPU
+        self.names = None            # instance names of the object table on the GPU
+        self.matrices = None         # their matrices
+        self.lights = None           # light rows last synced
+        self.resources = None        # resources.SceneResources (atlas, indirection, objects)
+        self.bake = None
+
+    def plan(self, bake, matrices: dict, lights) -> set:
+        """The resources a sync with these inputs would upload (no side effects)."""
+        names, keys, mats = instance_table(bake, matrices)
+        rows = np.asarray(lights, np.float32).reshape(-1, 16)
+        changes = set()
+        if self.mesh_keys is None or frozenset(keys) != self.mesh_keys:
+            changes |= {"atlas", "indirection", "objects"}
+        elif names != self.names or mats.shape != self.matrices.shape \
+                or not np.array_equal(mats, self.matrices):
+            changes.add("objects")
+        if self.lights is None or rows.shape != self.lights.shape \
+                or not np.array_equal(rows, self.lights):
+            changes.add("lights")
+        return changes
+
+    def sync(self, bake, matrices: dict, lights) -> set:
+        """Upload what changed; returns the set of re-uploaded resources."""
+        changes = self.plan(bake, matrices, lights)
+        names, keys, mats = instance_table(bake, matrices)
+        if "atlas" in changes:
+            self._upload_all(bake, names, keys, mats)
+        elif "objects" in changes:
+            self._upload_objects(bake, keys, mats)
+        if "lights" in changes:
+            self.lights = np.asarray(lights, np.float32).reshape(-1, 16).copy()
+        self.names, self.matrices, self.bake = names, mats, bake
+        self.mesh_keys = frozenset(keys)
+        for name in changes:
+            self.uploads[name] += 1
+        self.syncs += 1
+        self.last_changes = changes
+        return changes
+
+    # -- uploads (GPU context needed) --------------------------------------------------------
+    def _upload_all(self, bake, names, keys, mats):
+        from types import SimpleNamespace
+
+        from .packing import pack_scene
+        from .resources import SceneResources
+
+        placed = [SimpleNamespace(name=n, mesh=k, matrix_world=m)
+                  for n, k, m in zip(names, keys, mats)]
+        self.resources = SceneResources(pack_scene(bake.meshes, placed, 0))
+
+    def _upload_objects(self, bake, keys, mats):
+        """Rebuild only the object table texture from the packed offsets already on the GPU."""
+        import gpu
+
+        from .packing import OBJECT_TEXELS
+        from .resources import float_buffer
+
+        packed = self.resources.packed
+        rows = []
+        for key, mw in zip(keys, mats):
+            sdf = bake.meshes[key]
+            m = sdf.mips[0]
+            rows.append(object_row(np.linalg.inv(mw), sdf.origin, m.voxel_size, m.brick_grid,
+                                   m.band, sdf.bounds_min, sdf.bounds_max,
+                                   packed.indirection_offset[key], local_to_world_scale(mw)))
+        if not rows:
+            raise ValueError("the bake has no objects to trace")
+        packed.objects = np.stack(rows)
+        self.resources.objects = gpu.types.GPUTexture((OBJECT_TEXELS, len(rows)), format='RGBA32F',
+                                                      data=float_buffer(packed.objects))
+
+    def stats(self) -> dict:
+        """GPU bytes per resource (resources.stats() plus the light rows)."""
+        out = dict(self.resources.stats()) if self.resources is not None else {}
+        if self.lights is not None:
+            out["lights"] = max(len(self.lights), 1) * 4 * 16     # RGBA32F, 4 texels per light
+        return out
