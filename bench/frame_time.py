@@ -1,0 +1,124 @@
+"""Benchmark: frame time of the Lumen GI preview engine vs EEVEE, same scene, same resolution,
+same process, on this machine's GPU (Mesa llvmpipe headless).
+
+Scene: a 6 x 6 m floor, a cube, a UV sphere, a cylinder and a monkey, a sun and a point light,
+baked with bpy.ops.lumen.bake. Each engine renders `--size` x `--size` with bpy.ops.render.render:
+one warm-up render (shader compilation, first uploads), then `--repeat` timed renders; the median
+is printed. EEVEE keeps its default settings except 1 render sample (a viewport-like frame).
+Our engine's steady state re-uploads nothing (scene_state.SceneState) and runs G-buffer + direct
+light with SDF shadows, as view_draw does.
+
+    ./lumen bench frame_time [--size 256] [--repeat 5]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+
+
+def build_scene(tmp: Path, size: int):
+    import bpy
+    import mathutils
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+
+    def material(name, base):
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*base, 1.0)
+        return mat
+
+    ops = bpy.ops.mesh
+    ops.primitive_plane_add(size=6.0, location=(0, 0, 0))
+    ops.primitive_cube_add(size=1.0, location=(-1.2, 0.3, 0.5))
+    ops.primitive_uv_sphere_add(radius=0.6, location=(0.4, -0.4, 0.6))
+    ops.primitive_cylinder_add(radius=0.35, depth=1.4, location=(1.5, 0.9, 0.7))
+    ops.primitive_monkey_add(size=0.9, location=(-0.2, 1.4, 0.6))
+    colours = ((0.8, 0.8, 0.8), (0.8, 0.2, 0.2), (0.2, 0.7, 0.3), (0.2, 0.3, 0.8), (0.8, 0.7, 0.2))
+    for obj, c in zip(list(scene.objects), colours):
+        obj.data.materials.append(material(obj.name + "Mat", c))
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = 3.0
+    sun.rotation_euler = (0.6, 0.2, 0.8)
+    point = bpy.data.objects.new("Point", bpy.data.lights.new("Point", "POINT"))
+    point.data.energy = 400.0
+    point.location = (1.0, -1.5, 2.5)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    for obj in (sun, point, cam):
+        scene.collection.objects.link(obj)
+    cam.location = (3.5, -5.0, 3.5)
+    cam.rotation_euler = (mathutils.Vector((0, 0, 0.4)) - cam.location).to_track_quat(
+        "-Z", "Y").to_euler()
+    scene.camera = cam
+    scene.world = bpy.data.worlds.new("World")
+    scene.world.color = (0.05, 0.05, 0.06)
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    return scene
+
+
+def time_renders(repeat: int) -> list:
+    import bpy
+
+    times = []
+    for _ in range(repeat + 1):
+        t = time.perf_counter()
+        bpy.ops.render.render()
+        times.append(time.perf_counter() - t)
+    return times
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--size", type=int, default=256)
+    ap.add_argument("--repeat", type=int, default=5)
+    args = ap.parse_args()
+
+    import tempfile
+
+    import bpy
+    import demo
+
+    with tempfile.TemporaryDirectory() as tmp:
+        demo.load_addon()
+        scene = build_scene(Path(tmp), args.size)
+        scene.lumen.cache_dir = str(Path(tmp) / "cache")
+        scene.lumen.voxel_density = 16.0
+        t = time.perf_counter()
+        bpy.ops.lumen.bake()
+        bake_seconds = time.perf_counter() - t
+        from lumen_gi.gpu_shaders import engine
+
+        scene.render.engine = "LUMEN_GI"
+        ours = time_renders(args.repeat)
+        R = engine.LAST_RENDER
+        if "error" in R:
+            raise SystemExit(R.get("traceback", R["error"]))
+        breakdown = {k: round(R[k] * 1000, 1) for k in ("extract_seconds", "sync_seconds",
+                                                         "gbuffer_seconds", "direct_seconds")}
+        eevee_id = [i.identifier for i in
+                    bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
+                    if i.identifier.startswith("BLENDER_EEVEE")][0]
+        scene.render.engine = eevee_id
+        scene.eevee.taa_render_samples = 1
+        eevee = time_renders(args.repeat)
+
+    m_ours, m_eevee = statistics.median(ours[1:]), statistics.median(eevee[1:])
+    print(f"scene: {len(scene.objects)} objects, {R['triangles']} triangles, bake "
+          f"{bake_seconds:.2f} s, {args.size}x{args.size}, {args.repeat} timed renders each")
+    print(f"LUMEN_GI       warm-up {ours[0] * 1000:8.1f} ms, median {m_ours * 1000:8.1f} ms "
+          f"(last frame ms: {breakdown}, uploads {R['uploads']})")
+    print(f"{eevee_id:14s} warm-up {eevee[0] * 1000:8.1f} ms, median {m_eevee * 1000:8.1f} ms "
+          f"(1 render sample)")
+    print(f"ratio LUMEN_GI / {eevee_id} = {m_ours / m_eevee:.3f}")
+
+
+if __name__ == "__main__":
+    main()
