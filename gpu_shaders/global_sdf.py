@@ -177,11 +177,8 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
-  vec4 a = inv_view_proj * vec4(ndc, -1.0, 1.0);
-  vec4 b = inv_view_proj * vec4(ndc, 1.0, 1.0);
-  vec3 ro = a.xyz / a.w;
-  vec3 rd = normalize(b.xyz / b.w - ro);
+  vec3 ro, rd;
+  camera_ray(px, size, ro, rd);
   int steps, global_steps;
   float hit = trace_hybrid(ro, rd, t_max, max_steps, steps, global_steps);
   imageStore(trace_out, px, vec4(hit, float(steps), float(global_steps), 0.0));
@@ -199,7 +196,8 @@ def hybrid_trace_shader():
         info.push_constant('MAT4', 'inv_view_proj')
         info.push_constant('FLOAT', 't_max')
         info.push_constant('INT', 'max_steps')
-        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("global_sdf_lib.glsl") + "\n" + TRACE_MAIN)
+        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("global_sdf_lib.glsl") + "\n"
+                            + glsl("camera_lib.glsl") + "\n" + TRACE_MAIN)
         _SHADERS["trace"] = gpu.shader.create_from_info(info)
     return _SHADERS["trace"]
 

@@ -1,6 +1,6 @@
 """Numpy twins of the GPU passes (no bpy, no gpu): what the shaders are tested against.
 
-`camera_rays` builds the rays exactly as glsl/sdf_trace.comp.glsl does; `trace_scene` traces them
+`camera_rays` builds the rays exactly as glsl/camera_lib.glsl does; `trace_scene` traces them
 with the CPU reference `MeshSDF.sphere_trace`, each instance in its own local space, and keeps
 the nearest hit over instances.
 """

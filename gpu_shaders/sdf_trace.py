@@ -28,7 +28,8 @@ def trace_shader():
         info.push_constant('MAT4', 'inv_view_proj')
         info.push_constant('FLOAT', 't_max')
         info.push_constant('INT', 'max_steps')
-        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("sdf_trace.comp.glsl"))
+        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("camera_lib.glsl") + "\n"
+                            + glsl("sdf_trace.comp.glsl"))
         _SHADER["trace"] = gpu.shader.create_from_info(info)
     return _SHADER["trace"]
 

@@ -14,11 +14,8 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  vec2 ndc = (vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0;
-  vec4 a = inv_view_proj * vec4(ndc, -1.0, 1.0);
-  vec4 b = inv_view_proj * vec4(ndc, 1.0, 1.0);
-  vec3 ro = a.xyz / a.w;
-  vec3 rd = normalize(b.xyz / b.w - ro);
+  vec3 ro, rd;
+  camera_ray(px, size, ro, rd);
 
   float t = 0.0;
   float hit = -1.0;

@@ -97,3 +97,12 @@ def room_with_pillar(half=(3.0, 2.0, 1.5), pillar=(0.3, 0.3, 1.5)):
     pv, pf = box(pillar)
     pv = pv + np.array([0.8, 0.4, 0.0])
     return np.concatenate([rv, pv]), np.concatenate([rf, pf + len(rv)])
+
+
+def matrix(loc, rz=0.0, scale=1.0):
+    """4x4 world matrix: uniform scale, then a rotation about Z by rz radians, then a translation."""
+    m = np.eye(4)
+    c, s = np.cos(rz), np.sin(rz)
+    m[:3, :3] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) * scale
+    m[:3, 3] = loc
+    return m

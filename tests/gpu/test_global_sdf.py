@@ -31,18 +31,11 @@ SETUP = f"""
 import time, traceback
 import mathutils
 sys.path.insert(0, {str(HERE.parent / 'core')!r})
-from shapes import icosphere, box, torus
+from shapes import icosphere, box, torus, matrix
 from lumen_gi.lumen_addon.bake import BakeSettings, ObjectInput, bake_scene
 from lumen_gi.lumen_addon.cache import write_cache
 from lumen_gi.gpu_shaders.resources import SceneResources
 from lumen_gi.gpu_shaders import global_sdf, sdf_trace
-
-def matrix(loc, rz=0.0, scale=1.0):
-    m = np.eye(4)
-    c, s = np.cos(rz), np.sin(rz)
-    m[:3, :3] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) * scale
-    m[:3, 3] = loc
-    return m
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene

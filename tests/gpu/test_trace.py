@@ -21,18 +21,11 @@ SNIPPET = f"""
 import time
 import mathutils
 sys.path.insert(0, {str(HERE.parent / 'core')!r})
-from shapes import icosphere, box
+from shapes import icosphere, box, matrix
 from lumen_gi.lumen_addon.bake import BakeSettings, ObjectInput, bake_scene
 from lumen_gi.lumen_addon.cache import write_cache
 from lumen_gi.gpu_shaders import engine
 from lumen_gi.operators import bake_op
-
-def matrix(loc, rz=0.0, scale=1.0):
-    m = np.eye(4)
-    c, s = np.cos(rz), np.sin(rz)
-    m[:3, :3] = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) * scale
-    m[:3, 3] = loc
-    return m
 
 bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
