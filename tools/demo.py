@@ -1,16 +1,15 @@
-"""Bake a scene's mesh SDFs with the Lumen GI add-on and export the cache, headlessly.
+"""Bake a scene with the Lumen GI add-on, export the cache and render the preview, headlessly.
 
-    .venv/bin/python tools/demo.py [scene.blend] [--out DIR] [--voxel-density N]
+    .venv/bin/python tools/demo.py [scene.blend] [--out DIR] [--voxel-density N] [--size W H]
 
 Without a .blend it builds a small demo scene in code: a floor with a colour-grid texture, a red
 box, a subdivided UV sphere with two linked duplicates (one shared bake), a glowing torus, a thin
 two-sided wall and a sun. The
 add-on is loaded straight from this repository (as package `lumen_gi`), `lumen.bake` and
 `lumen.export_cache` run exactly as from the N-panel, the exported cache is read back and
-validated, and a table of what was baked is printed. Exits 1 with the error on failure.
-
-This covers the bake half of the pipeline; the GI preview render will be added to this script
-when the preview engine exists in `gpu_shaders/`.
+validated, a table of what was baked is printed, and the scene camera's view is rendered with
+the Lumen GI engine (F12's passes) to `<out>/preview.png` (skipped with a note when the scene has
+no camera). Exits 1 with the error on failure.
 """
 from __future__ import annotations
 
@@ -89,6 +88,12 @@ def build_demo_scene(*, sphere_segments: int = 16, sphere_rings: int = 8):
     sun = bpy.data.objects.new("Sun", light)
     sun.rotation_euler = (0.6, 0.2, 0.8)
     scene.collection.objects.link(sun)
+
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.location = (7.5, -7.5, 5.0)
+    cam.rotation_euler = (math.radians(63), 0.0, math.radians(45))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
     return scene
 
 
@@ -132,6 +137,8 @@ def main(argv=None) -> int:
     parser.add_argument("blend", nargs="?", help="a .blend to bake (default: built-in demo scene)")
     parser.add_argument("--out", default="out", help="output folder (default ./out)")
     parser.add_argument("--voxel-density", type=float, help="override the scene's voxel density")
+    parser.add_argument("--size", type=int, nargs=2, default=(320, 240), metavar=("W", "H"),
+                        help="preview image size (default 320 240)")
     args = parser.parse_args(argv)
 
     import bpy
@@ -167,6 +174,28 @@ def main(argv=None) -> int:
     for name, message in bake.warnings:
         print(f"warning: {name}: {message}")
     print(f"cache: {out}")
+    return render_preview(addon, scene, out.parent / "preview.png", args.size)
+
+
+def render_preview(addon, scene, path: Path, size) -> int:
+    """F12 with the Lumen GI engine into `path`; 1 if the engine reported an error."""
+    import bpy
+
+    if scene.camera is None:
+        print("preview: skipped (the scene has no camera)")
+        return 0
+    scene.render.engine = "LUMEN_GI"
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.filepath = str(path)
+    engine = addon.gpu_shaders.engine
+    engine.LAST_RENDER.clear()
+    bpy.ops.render.render(write_still=True)
+    if engine.LAST_RENDER.get("error"):
+        print(f"error: preview render: {engine.LAST_RENDER['error']}", file=sys.stderr)
+        return 1
+    print(f"preview: {path}")
     return 0
 
 
