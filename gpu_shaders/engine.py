@@ -173,6 +173,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
     LAST_RENDER.update(
         view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
         sky=sky, notes=list(warnings) + sky_notes, triangles=gbuf["triangles"],
+        gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
         position=gbuf["position"], normal=gbuf["normal"], albedo=gbuf["albedo"],

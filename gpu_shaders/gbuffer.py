@@ -6,9 +6,11 @@ material's values into one framebuffer with four RGBA32F colour attachments (MRT
 llvmpipe) and a 32-bit float depth buffer:
     position (world xyz, w = coverage), normal (world), albedo (linear base colour),
     emission (colour x strength).
-Albedo and emission are the material's *values*: image textures (Material.base_color_texture,
-emission_texture) are not sampled yet (they would need a texture per material and a UV
-attribute; extract already gives the per-corner UVs and the image arrays). Pixels are sampled
+Albedo and emission use the material's image textures (Material.base_color_texture,
+emission_texture) when there is one and the mesh has UVs, else its values; triangles are drawn
+in one batch per (albedo texture, emission texture) pair with per-corner UVs, each texture array
+uploaded once per frame (RGBA32F, cached by id(array)) and filtered in the shader like
+materials.sample_texture (bilinear, wrapping). Pixels are sampled
 once at their centre (no anti-aliasing). Row 0 is the bottom row, as in Blender's render result.
 Needs a GPU context (RenderEngine.render with bl_use_gpu_context).
 """
@@ -33,12 +35,18 @@ def gbuffer_shader():
         iface = gpu.types.GPUStageInterfaceInfo("lumen_gbuffer_iface")
         iface.smooth('VEC3', "v_pos")
         iface.smooth('VEC3', "v_nor")
+        iface.smooth('VEC2', "v_uv")
         iface.flat('VEC3', "v_albedo")
         iface.flat('VEC3', "v_emit")
         info = gpu.types.GPUShaderCreateInfo()
         info.push_constant('MAT4', "view_proj")
-        for slot, name in enumerate(("pos", "nor", "albedo", "emit")):
-            info.vertex_in(slot, 'VEC3', name)
+        info.push_constant('INT', "use_albedo_tex")
+        info.push_constant('INT', "use_emit_tex")
+        info.sampler(0, 'FLOAT_2D', "albedo_tex")
+        info.sampler(1, 'FLOAT_2D', "emit_tex")
+        for slot, (name, kind) in enumerate((("pos", 'VEC3'), ("nor", 'VEC3'), ("uv", 'VEC2'),
+                                             ("albedo", 'VEC3'), ("emit", 'VEC3'))):
+            info.vertex_in(slot, kind, name)
         info.vertex_out(iface)
         for slot, name in enumerate(ATTACHMENTS):
             info.fragment_out(slot, 'VEC4', "out_" + name)
@@ -48,9 +56,33 @@ def gbuffer_shader():
     return _SHADER["gbuffer"]
 
 
+def texture_rgba(tex) -> np.ndarray:
+    """A material texture array (H, W) or (H, W, C) as float32 (H, W, 4) RGBA, channels as
+    materials.sample_texture reads them (one channel: grey; three or more: the first three)."""
+    t = np.asarray(tex, np.float32)
+    if t.ndim == 2:
+        t = t[:, :, None]
+    h, w, c = t.shape
+    out = np.ones((h, w, 4), np.float32)
+    out[..., :3] = t[..., :3] if c >= 3 else t[..., :1]
+    return out
+
+
+def upload_texture(tex):
+    """An RGBA32F 2D GPUTexture of a material texture array (row 0 = v 0 = texel row 0)."""
+    rgba = texture_rgba(tex)
+    h, w = rgba.shape[:2]
+    buf = gpu.types.Buffer('FLOAT', rgba.size, rgba.ravel())
+    return gpu.types.GPUTexture((w, h), format='RGBA32F', data=buf)
+
+
 def scene_triangles(objects):
-    """numpy float32 arrays [3T, 3] (pos, nor, albedo, emit) of every triangle, in world space."""
-    pos, nor, alb, emi = [], [], [], []
+    """Draw groups of every triangle, in world space: a list of dicts with numpy float32 arrays
+    pos, nor, albedo, emit [3T, 3], uv [3T, 2] and the texture arrays albedo_tex / emit_tex (or
+    None) that the group's fragments sample. Triangles are grouped by (albedo texture, emission
+    texture) identity; untextured triangles all go to one group. With an emission texture the
+    per-corner emit value is the strength (the shader multiplies), as materials.shade does."""
+    groups = {}
     for ob in objects:
         tris = np.asarray(ob.triangles, np.int64)
         if not len(tris):
@@ -67,63 +99,112 @@ def scene_triangles(objects):
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-20)
         if np.linalg.det(m[:3, :3]) < 0 and ob.normals is None:
             n = -n
-        mats = list(ob.materials)
         t = len(tris)
-        if mats:
-            ids = (np.clip(np.asarray(ob.material_ids, np.int64), 0, len(mats) - 1)
-                   if ob.material_ids is not None else np.zeros(t, np.int64))
-            base = np.array([np.asarray(mt.base_color, np.float64)[:3] for mt in mats])
-            emit = np.array([np.asarray(mt.emission_color, np.float64)[:3]
-                             * float(mt.emission_strength) for mt in mats])
-            a_t, e_t = base[ids], emit[ids]
-        else:
-            from ..lumen_addon.materials import Material
-            a_t = np.tile(np.asarray(Material().base_color, np.float64)[:3], (t, 1))
-            e_t = np.zeros((t, 3))
-        pos.append(p)
-        nor.append(n)
-        alb.append(np.repeat(a_t, 3, axis=0))
-        emi.append(np.repeat(e_t, 3, axis=0))
-    if not pos:
-        z = np.zeros((0, 3), np.float32)
-        return z, z, z, z
-    return tuple(np.concatenate(x).astype(np.float32) for x in (pos, nor, alb, emi))
+        uvs = getattr(ob, "uvs", None)
+        uv = (np.asarray(uvs, np.float64).reshape(-1, 2) if uvs is not None
+              else np.zeros((3 * t, 2)))
+        from ..lumen_addon.materials import Material
+        mats = list(ob.materials) or [Material()]
+        ids = (np.clip(np.asarray(ob.material_ids, np.int64), 0, len(mats) - 1)
+               if ob.material_ids is not None and len(mats) > 1 else np.zeros(t, np.int64))
+        for k, mt in enumerate(mats):
+            sel = np.flatnonzero(ids == k)
+            if not sel.size:
+                continue
+            a_tex = mt.base_color_texture if uvs is not None else None
+            e_tex = (mt.emission_texture if uvs is not None and mt.emission_strength
+                     else None)
+            alb = np.asarray(mt.base_color, np.float64)[:3]
+            if e_tex is not None:
+                emi = np.full(3, float(mt.emission_strength))
+            else:
+                emi = np.asarray(mt.emission_color, np.float64)[:3] * float(mt.emission_strength)
+            key = (id(a_tex) if a_tex is not None else None,
+                   id(e_tex) if e_tex is not None else None)
+            g = groups.setdefault(key, dict(albedo_tex=a_tex, emit_tex=e_tex, pos=[], nor=[],
+                                            uv=[], albedo=[], emit=[]))
+            corners = (sel[:, None] * 3 + np.arange(3)).ravel()
+            g["pos"].append(p[corners])
+            g["nor"].append(n[corners])
+            g["uv"].append(uv[corners])
+            g["albedo"].append(np.tile(alb, (len(corners), 1)))
+            g["emit"].append(np.tile(emi, (len(corners), 1)))
+    out = []
+    for g in groups.values():
+        for name in ("pos", "nor", "uv", "albedo", "emit"):
+            g[name] = np.concatenate(g[name]).astype(np.float32)
+        out.append(g)
+    return out
 
 
 def read_texture(tex, width, height):
     return np.asarray(tex.read().to_list(), np.float32).reshape(height, width, -1)
 
 
-def render_gbuffer(objects, view_proj, width: int, height: int) -> dict:
+def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=None) -> dict:
     """Draw `objects` (ObjectInputs) with `view_proj` (4x4); returns {'textures': {name: GPUTexture},
-    name: float32 [h, w, 4] for every attachment, 'depth': [h, w] window depth, timings}."""
+    name: float32 [h, w, 4] for every attachment, 'depth': [h, w] window depth, timings}.
+    `texture_cache` ({id(array): (array, GPUTexture)}, e.g. the SceneState's) keeps material
+    texture uploads across frames; entries whose array is not drawn this frame are dropped."""
     import mathutils
 
     t0 = time.perf_counter()
     shader = gbuffer_shader()
-    pos, nor, alb, emi = scene_triangles(objects)
+    groups = scene_triangles(objects)
+    cache = texture_cache if texture_cache is not None else {}
+    used, uploaded = set(), 0
+    dummy = None
+
+    def gpu_texture(arr):
+        nonlocal uploaded
+        key = id(arr)
+        used.add(key)
+        hit = cache.get(key)
+        if hit is None or hit[0] is not arr:      # the array is kept alive: ids stay unique
+            cache[key] = hit = (arr, upload_texture(arr))
+            uploaded += 1
+        return hit[1]
+
     textures = {name: gpu.types.GPUTexture((width, height), format='RGBA32F')
                 for name in ATTACHMENTS}
     depth = gpu.types.GPUTexture((width, height), format='DEPTH_COMPONENT32F')
     fb = gpu.types.GPUFrameBuffer(depth_slot=depth,
                                   color_slots=tuple(textures[n] for n in ATTACHMENTS))
     t1 = time.perf_counter()
+    triangles = 0
     with fb.bind():
         fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
-        if len(pos):
-            batch = batch_for_shader(shader, 'TRIS', {"pos": pos, "nor": nor, "albedo": alb,
-                                                      "emit": emi})
-            gpu.state.depth_test_set('LESS_EQUAL')
-            gpu.state.depth_mask_set(True)
-            gpu.state.face_culling_set('NONE')
-            gpu.state.viewport_set(0, 0, width, height)
+        gpu.state.depth_test_set('LESS_EQUAL')
+        gpu.state.depth_mask_set(True)
+        gpu.state.face_culling_set('NONE')
+        gpu.state.viewport_set(0, 0, width, height)
+        shader.bind()
+        shader.uniform_float("view_proj", mathutils.Matrix(
+            np.asarray(view_proj, np.float64).tolist()))
+        for g in groups:
+            if not len(g["pos"]):
+                continue
+            triangles += len(g["pos"]) // 3
+            if dummy is None and (g["albedo_tex"] is None or g["emit_tex"] is None):
+                dummy = gpu.types.GPUTexture((1, 1), format='RGBA32F', data=gpu.types.Buffer(
+                    'FLOAT', 4, [1.0, 1.0, 1.0, 1.0]))
+            a_tex = gpu_texture(g["albedo_tex"]) if g["albedo_tex"] is not None else dummy
+            e_tex = gpu_texture(g["emit_tex"]) if g["emit_tex"] is not None else dummy
+            batch = batch_for_shader(shader, 'TRIS', {name: g[name] for name in
+                                                      ("pos", "nor", "uv", "albedo", "emit")})
             shader.bind()
-            shader.uniform_float("view_proj", mathutils.Matrix(
-                np.asarray(view_proj, np.float64).tolist()))
+            shader.uniform_int("use_albedo_tex", int(g["albedo_tex"] is not None))
+            shader.uniform_int("use_emit_tex", int(g["emit_tex"] is not None))
+            shader.uniform_sampler("albedo_tex", a_tex)
+            shader.uniform_sampler("emit_tex", e_tex)
             batch.draw(shader)
-            gpu.state.depth_test_set('NONE')
-            gpu.state.depth_mask_set(False)
-    out = {"textures": textures, "depth_texture": depth, "triangles": len(pos) // 3}
+        gpu.state.depth_test_set('NONE')
+        gpu.state.depth_mask_set(False)
+    for key in [k for k in cache if k not in used]:
+        del cache[key]
+    out = {"textures": textures, "depth_texture": depth, "triangles": triangles,
+           "draws": sum(1 for g in groups if len(g["pos"])), "texture_uploads": uploaded,
+           "textures_resident": len(cache)}
     for name in ATTACHMENTS:
         out[name] = read_texture(textures[name], width, height)
     out["depth"] = np.asarray(depth.read().to_list(), np.float32).reshape(height, width)
