@@ -18,6 +18,7 @@ HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE.parent / "blender")]
 
 from blender_runner import run_python  # noqa: E402
+from exr_passes import read_pass  # noqa: E402
 
 SIZE = 64
 LIGHTS = ("SUN", "POINT", "SPOT", "AREA")
@@ -118,25 +119,6 @@ for kind in {LIGHTS!r}:
     bpy.data.objects.remove(light)
 emit(times=times, bake_seconds=bake_seconds, engine=notes)
 """
-
-
-def read_pass(path, layer_pass):
-    import OpenImageIO as oiio
-    inp = oiio.ImageInput.open(str(path))
-    assert inp is not None, oiio.geterror()
-    seen, sub = [], 0
-    while inp.seek_subimage(sub, 0):           # Blender 5.0 writes one EXR part per pass
-        spec = inp.spec()
-        names = list(spec.channelnames)
-        seen += names
-        idx = [i for i, n in enumerate(names) if n.rsplit(".", 1)[0].endswith("." + layer_pass)]
-        if len(idx) >= 3:
-            px = inp.read_image(sub, 0, 0, spec.nchannels, "float")
-            inp.close()
-            return np.asarray(px, np.float32)[..., idx[:3]]
-        sub += 1
-    inp.close()
-    raise AssertionError(f"no pass {layer_pass!r} in {path}: {seen}")
 
 
 def rel_mse(ours, ref):

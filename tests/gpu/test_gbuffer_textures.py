@@ -16,6 +16,7 @@ HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE.parent / "blender")]
 
 from blender_runner import run_python  # noqa: E402
+from exr_passes import read_pass  # noqa: E402
 
 SIZE = 64
 TEX = 16
@@ -84,24 +85,6 @@ emit(bake_seconds=bake_seconds, render_seconds=render_seconds, draws=R["gbuffer_
      texture_uploads=R["texture_uploads"], gbuffer_seconds=R["gbuffer_seconds"],
      texture_shape=list(tex.shape))
 """
-
-
-def read_pass(path, layer_pass):
-    import OpenImageIO as oiio
-    inp = oiio.ImageInput.open(str(path))
-    assert inp is not None, oiio.geterror()
-    sub = 0
-    while inp.seek_subimage(sub, 0):           # Blender 5.0 writes one EXR part per pass
-        spec = inp.spec()
-        idx = [i for i, n in enumerate(spec.channelnames)
-               if n.rsplit(".", 1)[0].endswith("." + layer_pass)]
-        if len(idx) >= 3:
-            px = inp.read_image(sub, 0, 0, spec.nchannels, "float")
-            inp.close()
-            return np.asarray(px, np.float32)[..., idx[:3]]
-        sub += 1
-    inp.close()
-    raise AssertionError(f"no pass {layer_pass!r} in {path}")
 
 
 def srgb_to_linear(c):
