@@ -37,14 +37,17 @@ def direct_shader():
         info.push_constant('VEC3', 'cam_pos')
         info.push_constant('INT', 'light_count')
         info.push_constant('INT', 'sky_cones')
-        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("direct_light.comp.glsl"))
+        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("light_lib.glsl") + "\n"
+                            + glsl("direct_light.comp.glsl"))
         _SHADER["direct"] = gpu.shader.create_from_info(info)
     return _SHADER["direct"]
 
 
 def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky, cam_pos,
-          width: int, height: int, sky_cones: int = SKY_CONES) -> dict:
-    """Run the pass; returns {'direct': float32 [h, w, 4], 'combined': [h, w, 4], timings}."""
+          width: int, height: int, sky_cones: int = SKY_CONES, light_texture=None) -> dict:
+    """Run the pass; returns {'direct': float32 [h, w, 4], 'combined': [h, w, 4], timings}.
+    `light_texture`: the rows already on the GPU (SceneState.light_texture), else made here.
+    sky_cones = 0 leaves the sky light out (the GI passes bring it)."""
     t0 = time.perf_counter()
     shader = direct_shader()
     t1 = time.perf_counter()
@@ -52,7 +55,8 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky, cam_po
     count = len(rows)
     if not count:
         rows = np.zeros((1, 16), np.float32)
-    light_tex = gpu.types.GPUTexture((4, len(rows)), format='RGBA32F', data=float_buffer(rows))
+    light_tex = light_texture if light_texture is not None else gpu.types.GPUTexture(
+        (4, len(rows)), format='RGBA32F', data=float_buffer(rows))
     direct = gpu.types.GPUTexture((width, height), format='RGBA32F')
     combined = gpu.types.GPUTexture((width, height), format='RGBA32F')
     resources.bind(shader)

@@ -10,7 +10,9 @@ and re-uploads only what changed:
     atlas + indirection (+ objects)   the set of baked mesh hashes changed (a re-bake that changed
                                       some mesh); a re-bake with the same meshes uploads nothing
     objects                           an instance moved / appeared / vanished (transform edits)
-    lights                            the light rows changed
+    lights                            the light rows changed (rows and their RGBA32F texture)
+    cards                             the instances' card hashes or the card atlas layout changed
+                                      (surface_cache.SurfaceCache: card layers, tables, lighting)
 `plan()` is the decision alone (numpy only, no gpu); `sync()` plans and uploads (needs a GPU
 context). `uploads` counts uploads per resource, `last_changes` is the set of the last sync.
 """
@@ -20,7 +22,7 @@ import numpy as np
 
 from .packing import local_to_world_scale, object_row
 
-RESOURCES = ("atlas", "indirection", "objects", "lights")
+RESOURCES = ("atlas", "indirection", "objects", "lights", "cards")
 
 # One state per scene name: F12 renders create a new RenderEngine each time, so the state lives
 # at module level and repeated renders (and the viewport) of a scene share it.
@@ -47,6 +49,14 @@ def instance_table(bake, matrices: dict):
     return names, keys, arr
 
 
+def card_key(bake) -> tuple:
+    """What the surface cache's layout depends on: each instance's cards hash and the card
+    atlas rectangles (a re-bake with the same cards and layout keeps the lighting)."""
+    table = bake.atlas.table if getattr(bake, "atlas", None) is not None else []
+    return (tuple(inst.cards for inst in bake.instances),
+            tuple((e["mesh"], e["index"], tuple(e["rect"])) for e in table))
+
+
 class SceneState:
     def __init__(self):
         self.uploads = {name: 0 for name in RESOURCES}
@@ -57,6 +67,9 @@ class SceneState:
         self.matrices = None         # their matrices
         self.lights = None           # light rows last synced
         self.resources = None        # resources.SceneResources (atlas, indirection, objects)
+        self.light_texture = None    # RGBA32F, 4 texels per light row (at least one row)
+        self.cards_key = None        # card_key() of the surface cache on the GPU
+        self.surface_cache = None    # surface_cache.SurfaceCache
         self.bake = None
 
     def plan(self, bake, matrices: dict, lights) -> set:
@@ -72,6 +85,8 @@ class SceneState:
         if self.lights is None or rows.shape != self.lights.shape \
                 or not np.array_equal(rows, self.lights):
             changes.add("lights")
+        if card_key(bake) != self.cards_key:
+            changes.add("cards")
         return changes
 
     def sync(self, bake, matrices: dict, lights) -> set:
@@ -84,6 +99,11 @@ class SceneState:
             self._upload_objects(bake, keys, mats)
         if "lights" in changes:
             self.lights = np.asarray(lights, np.float32).reshape(-1, 16).copy()
+            self._upload_lights()
+        if "cards" in changes:
+            from .surface_cache import SurfaceCache
+            self.surface_cache = SurfaceCache(bake.atlas, [inst.cards for inst in bake.instances])
+            self.cards_key = card_key(bake)
         self.names, self.matrices, self.bake = names, mats, bake
         self.mesh_keys = frozenset(keys)
         for name in changes:
@@ -102,6 +122,15 @@ class SceneState:
         placed = [SimpleNamespace(name=n, mesh=k, matrix_world=m)
                   for n, k, m in zip(names, keys, mats)]
         self.resources = SceneResources(pack_scene(bake.meshes, placed, 0))
+
+    def _upload_lights(self):
+        import gpu
+
+        from .resources import float_buffer
+
+        rows = self.lights if len(self.lights) else np.zeros((1, 16), np.float32)
+        self.light_texture = gpu.types.GPUTexture((4, len(rows)), format='RGBA32F',
+                                                  data=float_buffer(rows))
 
     def _upload_objects(self, bake, keys, mats):
         """Rebuild only the object table texture from the packed offsets already on the GPU."""
@@ -129,4 +158,6 @@ class SceneState:
         out = dict(self.resources.stats()) if self.resources is not None else {}
         if self.lights is not None:
             out["lights"] = max(len(self.lights), 1) * 4 * 16     # RGBA32F, 4 texels per light
+        if self.surface_cache is not None:
+            out.update(self.surface_cache.stats())
         return out

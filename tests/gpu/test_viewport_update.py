@@ -97,14 +97,14 @@ def test_moves_reupload_only_what_changed(tmp_path):
     assert run.returncode == 0, run.explain()
     steps = run.result["steps"]
     print(steps, run.result["memory"])
-    assert steps["first"]["changes"] == ["atlas", "indirection", "lights", "objects"]
+    assert steps["first"]["changes"] == ["atlas", "cards", "indirection", "lights", "objects"]
     assert steps["again"]["changes"] == []
     assert steps["moved_object"]["changes"] == ["objects"]
     assert steps["moved_object"]["uploads"]["atlas"] == 1
     assert steps["moved_object"]["same_bake"]                  # no re-bake
     assert steps["moved_light"]["changes"] == ["lights"]
     assert steps["moved_light"]["uploads"] == {"atlas": 1, "indirection": 1, "objects": 2,
-                                               "lights": 2}
+                                               "lights": 2, "cards": 1}
     assert steps["rebake_same"]["changes"] == []              # same meshes: nothing uploaded
     assert set(steps["rebake_new_mesh"]["changes"]) >= {"atlas", "indirection", "objects"}
     assert steps["rebake_new_mesh"]["uploads"]["atlas"] == 2

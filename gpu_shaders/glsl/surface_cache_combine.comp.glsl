@@ -1,0 +1,23 @@
+/* Surface cache final lighting (the lecture's "Combine Lighting"), per lighting-atlas texel:
+ *   final = (E_direct + E_indirect) * albedo / pi + emissive      (radiance, Lambert)
+ * Inputs: sc_direct, sc_indirect (irradiance, rgb), the card layers. Output out_image: final.rgb,
+ * w = 1 where the texel holds a surface.
+ */
+#define PI 3.14159265358979
+
+void main()
+{
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(out_image);
+  if (px.x >= size.x || px.y >= size.y) {
+    return;
+  }
+  int row = int(texelFetch(texel_card, px, 0).x);
+  vec3 pl, nl, albedo, emissive;
+  if (row < 0 || !sc_texel_surface(row, px - ivec2(sc_card(row, 0).zw + 0.5), pl, nl, albedo, emissive)) {
+    imageStore(out_image, px, vec4(0.0));
+    return;
+  }
+  vec3 E = texelFetch(sc_direct, px, 0).rgb + texelFetch(sc_indirect, px, 0).rgb;
+  imageStore(out_image, px, vec4(E * albedo / PI + emissive, 1.0));
+}

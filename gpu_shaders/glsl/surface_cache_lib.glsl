@@ -1,0 +1,136 @@
+/* Lumen GI: the surface cache (mesh cards) on the GPU (needs sdf_lib.glsl).
+ *
+ * Resources (declared by surface_cache.SurfaceCache.declare, layout in card_packing.py):
+ *   sampler2D sc_cards       RGBA32F, 4 texels per (instance, card) row
+ *   sampler2D sc_instances   RGBA32F, 1 texel per object-table row: (first card row, count)
+ *   sampler2D sc_albedo      card atlas: albedo.rgb, opacity      (mesh-local layers, shared by
+ *   sampler2D sc_normal      card atlas: local normal.xyz, depth   all instances of a mesh)
+ *   sampler2D sc_emissive    card atlas: emissive.rgb
+ *   sampler2D sc_final       lighting atlas: final radiance (direct + indirect) * albedo / pi
+ *                            + emissive, one texel per (instance, card) texel
+ * Card look directions as lumen_addon.cards.AXES (+X -X +Y -Y +Z -Z); a card looking along A
+ * spans local axes PLANE[A] and its texel (i, j) centre is rect_min + (i + 0.5, j + 0.5) * texel.
+ */
+
+#define SC_CARD_TEXELS 4
+
+const vec3 SC_AXES[6] = vec3[6](vec3(1.0, 0.0, 0.0), vec3(-1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0),
+                                vec3(0.0, -1.0, 0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, -1.0));
+
+ivec2 sc_plane(int axis)
+{
+  return axis < 2 ? ivec2(1, 2) : (axis < 4 ? ivec2(0, 2) : ivec2(0, 1));
+}
+
+vec4 sc_card(int row, int t)
+{
+  return texelFetch(sc_cards, ivec2(t, row), 0);
+}
+
+ivec2 sc_instance_range(int obj)
+{
+  vec4 r = texelFetch(sc_instances, ivec2(0, obj), 0);
+  return ivec2(r.xy + 0.5);
+}
+
+/* Surface of texel ij (0..w-1, 0..h-1) of card row `row`, in the mesh's local space; false where
+ * the card saw nothing. */
+bool sc_texel_surface(int row, ivec2 ij, out vec3 p, out vec3 n, out vec3 albedo, out vec3 emissive)
+{
+  vec4 t0 = sc_card(row, 0);
+  vec4 t1 = sc_card(row, 1);
+  vec4 t2 = sc_card(row, 2);
+  vec4 t3 = sc_card(row, 3);
+  int axis = int(t0.y + 0.5);
+  ivec2 at = ivec2(t1.xy + 0.5) + ij;
+  vec4 a = texelFetch(sc_albedo, at, 0);
+  vec4 nd = texelFetch(sc_normal, at, 0);
+  albedo = a.rgb;
+  emissive = texelFetch(sc_emissive, at, 0).rgb;
+  n = nd.xyz;
+  vec2 uv = t2.xy + (vec2(ij) + 0.5) * (t2.zw - t2.xy) / t1.zw;
+  ivec2 pl = sc_plane(axis);
+  p = vec3(0.0);
+  p[pl.x] = uv.x;
+  p[pl.y] = uv.y;
+  p += SC_AXES[axis] * (t3.x + nd.w);
+  return a.a > 0.5;
+}
+
+/* Gradient normal of object obj's mesh SDF at local point p (central differences, e local m). */
+vec3 sdf_mesh_normal_local(int obj, vec3 p, float e)
+{
+  vec2 k = vec2(e, 0.0);
+  vec3 g = vec3(sdf_mesh_local(obj, p + k.xyy) - sdf_mesh_local(obj, p - k.xyy),
+                sdf_mesh_local(obj, p + k.yxy) - sdf_mesh_local(obj, p - k.yxy),
+                sdf_mesh_local(obj, p + k.yyx) - sdf_mesh_local(obj, p - k.yyx));
+  float l = length(g);
+  return l > 0.0 ? g / l : vec3(0.0, 0.0, 1.0);
+}
+
+/* Final lighting of object obj's surface cache at local point p with local unit normal n: every
+ * card facing n (weight = cos between n and the card's view, above 0.1) that holds p at its depth
+ * (bilinear over the 2x2 texels around p, texels kept when opaque and within `tol` + the slope of
+ * the surface across a texel of p's depth) contributes; weight returns the sum of the card
+ * weights (0: no card sees p, the result is then black). */
+vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, out float weight)
+{
+  ivec2 range = sc_instance_range(obj);
+  vec3 sum = vec3(0.0);
+  weight = 0.0;
+  for (int r = range.x; r < range.x + range.y; r++) {
+    vec4 t0 = sc_card(r, 0);
+    int axis = int(t0.y + 0.5);
+    float facing = -dot(n, SC_AXES[axis]);
+    if (facing < 0.1) {
+      continue;
+    }
+    vec4 t1 = sc_card(r, 1);
+    vec4 t2 = sc_card(r, 2);
+    vec4 t3 = sc_card(r, 3);
+    ivec2 pl = sc_plane(axis);
+    vec2 res = t1.zw;
+    vec2 ts = (t2.zw - t2.xy) / res;
+    vec2 f = (vec2(p[pl.x], p[pl.y]) - t2.xy) / ts - 0.5;
+    if (any(lessThan(f, vec2(-1.0))) || any(greaterThan(f, res))) {
+      continue;
+    }
+    float depth = dot(SC_AXES[axis], p) - t3.x;
+    float tan_s = sqrt(max(1.0 - facing * facing, 0.0)) / facing;
+    float dtol = tol + max(ts.x, ts.y) * (0.5 + 1.5 * min(tan_s, 20.0));
+    ivec2 i0 = ivec2(floor(f));
+    vec2 w = f - vec2(i0);
+    ivec2 hi = ivec2(res + 0.5) - 1;
+    vec3 csum = vec3(0.0);
+    float cw = 0.0;
+    for (int k = 0; k < 4; k++) {
+      ivec2 d = ivec2(k & 1, k >> 1);
+      ivec2 ij = clamp(i0 + d, ivec2(0), hi);
+      ivec2 at = ivec2(t1.xy + 0.5) + ij;
+      float op = texelFetch(sc_albedo, at, 0).a;
+      float td = texelFetch(sc_normal, at, 0).w;
+      if (op < 0.5 || abs(td - depth) > dtol) {
+        continue;
+      }
+      float bw = (d.x == 1 ? w.x : 1.0 - w.x) * (d.y == 1 ? w.y : 1.0 - w.y) + 1e-4;
+      csum += bw * texelFetch(sc_final, ivec2(t0.zw + 0.5) + ij, 0).rgb;
+      cw += bw;
+    }
+    if (cw > 0.0) {
+      sum += facing * csum / cw;
+      weight += facing;
+    }
+  }
+  return weight > 0.0 ? sum / weight : vec3(0.0);
+}
+
+/* Final lighting at world point pw on object obj (a ray hit): local point, SDF gradient normal,
+ * then sc_sample_local. voxel_world: the object's voxel, which sets the depth tolerance (the SDF
+ * surface lies within about half a voxel of the mesh). */
+vec3 sc_sample_world(int obj, vec3 pw, out float weight)
+{
+  vec3 pl = sdf_world_to_local(obj, pw);
+  float h = sdf_object_texel(obj, 4).w;
+  vec3 nl = sdf_mesh_normal_local(obj, pl, 0.5 * h);
+  return sc_sample_local(obj, pl, nl, 1.0 * h, weight);
+}

@@ -1,0 +1,34 @@
+/* Surface cache seen from the camera (debug views and tests): per G-buffer pixel, the object whose
+ * SDF is nearest to the pixel's world point, the pixel's normal in that object's local space, and
+ * sc_sample_local of whatever lighting-atlas texture is bound as sc_final (final light, or a
+ * surface_cache_layer.comp.glsl view of albedo, normal, direct light, card colours).
+ * Inputs: gbuf_position, gbuf_normal; cam_pos. Output out_image: rgb, w = card weight (0: no card
+ * sees this point, shown magenta so holes in the cards stand out); background: black, w = -1.
+ */
+void main()
+{
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(out_image);
+  if (px.x >= size.x || px.y >= size.y) {
+    return;
+  }
+  vec4 pos = texelFetch(gbuf_position, px, 0);
+  if (pos.w < 0.5) {
+    imageStore(out_image, px, vec4(0.0, 0.0, 0.0, -1.0));
+    return;
+  }
+  vec3 n = normalize(texelFetch(gbuf_normal, px, 0).xyz);
+  if (dot(n, cam_pos - pos.xyz) < 0.0) {
+    n = -n;
+  }
+  float h;
+  int obj;
+  sdf_scene(pos.xyz, h, obj);
+  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
+                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
+  vec3 pl = (w2l * vec4(pos.xyz, 1.0)).xyz;
+  vec3 nl = normalize(transpose(inverse(mat3(w2l))) * n);
+  float weight;
+  vec3 v = sc_sample_local(obj, pl, nl, sdf_object_texel(obj, 4).w, weight);
+  imageStore(out_image, px, weight > 0.0 ? vec4(v, weight) : vec4(1.0, 0.0, 1.0, 0.0));
+}

@@ -1,0 +1,212 @@
+"""The surface cache on the GPU: the bake's card atlas, the per-instance lighting atlas and its passes.
+
+Textures (card_packing.py has the layouts):
+    card atlas (the bake's, shared by the instances of a mesh):
+        sc_albedo   RGBA16F  albedo.rgb, opacity
+        sc_normal   RGBA32F  local normal.xyz, depth (32 bit: depths are metres along the card)
+        sc_emissive RGBA16F  emissive.rgb
+    tables: sc_cards RGBA32F (4 texels per (instance, card) row), sc_instances RGBA32F (card range
+        per object-table row), texel_card R32F (lighting texel -> card row)
+    lighting atlas (one rectangle per (instance, card)), RGBA32F:
+        direct    E_direct, irradiance from the lights with SDF shadows (W/m^2)
+        indirect  E_indirect, irradiance from rays into the scene, read from `final` (next file)
+        final     (E_direct + E_indirect) * albedo / pi + emissive: the radiance rays read at hits
+The passes, one GLSL file each: surface_cache_direct (lights), surface_cache_indirect
+(surface_cache_indirect.py), surface_cache_combine (final). Reading last frame's `final` in the
+indirect pass is what makes light bounce again every frame (the lecture's multi-bounce).
+Needs a GPU context.
+"""
+from __future__ import annotations
+
+import time
+
+import gpu
+import numpy as np
+
+from .card_packing import CARD_TEXELS, PackedCards, pack_cards
+from .resources import SceneResources, float_buffer, glsl
+
+GROUP = 8
+_SHADERS = {}
+
+
+def _tex(size, fmt, data=None):
+    if data is None:
+        return gpu.types.GPUTexture(size, format=fmt)
+    return gpu.types.GPUTexture(size, format=fmt, data=float_buffer(data))
+
+
+class SurfaceCache:
+    """Card and lighting textures of one scene state (see the module docstring)."""
+
+    BYTES = {"RGBA16F": 8, "RGBA32F": 16, "R32F": 4}
+
+    def __init__(self, atlas, instance_cards):
+        t0 = time.perf_counter()
+        self.packed: PackedCards = pack_cards(atlas, instance_cards)
+        self.atlas = atlas
+        self._alloc = {}
+        aw, ah = self.packed.card_atlas_size
+        if atlas is not None and atlas.table:
+            layers = atlas.layers
+        else:
+            layers = {"albedo": np.zeros((ah, aw, 3)), "opacity": np.zeros((ah, aw, 1)),
+                      "normal": np.zeros((ah, aw, 3)), "depth": np.zeros((ah, aw, 1)),
+                      "emissive": np.zeros((ah, aw, 3))}
+        rgba = np.empty((ah, aw, 4), np.float32)
+        rgba[..., :3], rgba[..., 3] = layers["albedo"], layers["opacity"][..., 0]
+        self.albedo = self._make("albedo", (aw, ah), 'RGBA16F', rgba)
+        rgba[..., :3], rgba[..., 3] = layers["normal"], layers["depth"][..., 0]
+        self.normal = self._make("normal", (aw, ah), 'RGBA32F', rgba)
+        rgba[..., :3], rgba[..., 3] = layers["emissive"], 0.0
+        self.emissive = self._make("emissive", (aw, ah), 'RGBA16F', rgba)
+        self.cards = self._make("cards", (CARD_TEXELS, self.packed.rows), 'RGBA32F', self.packed.cards)
+        self.instances = self._make("instances", (1, max(len(self.packed.instances), 1)), 'RGBA32F',
+                                    self.packed.instances if len(self.packed.instances)
+                                    else np.zeros((1, 1, 4), np.float32))
+        lw, lh = self.packed.lighting_size
+        self.texel_card = self._make("texel_card", (lw, lh), 'R32F', self.packed.texel_card)
+        zero = np.zeros((lh, lw, 4), np.float32)
+        self.direct = self._make("direct", (lw, lh), 'RGBA32F', zero)
+        self.indirect = self._make("indirect", (lw, lh), 'RGBA32F', zero)
+        self.final = self._make("final", (lw, lh), 'RGBA32F', zero)
+        self.frames = 0                # indirect passes accumulated since the last reset
+        self.upload_seconds = time.perf_counter() - t0
+
+    def _make(self, name, size, fmt, data):
+        self._alloc[name] = (int(size[0]) * int(size[1]), fmt)
+        return _tex(size, fmt, data)
+
+    @property
+    def has_cards(self) -> bool:
+        return self.packed.texels > 0
+
+    def reset_lighting(self):
+        """Forget accumulated indirect light (the scene changed under it)."""
+        lw, lh = self.packed.lighting_size
+        zero = np.zeros((lh, lw, 4), np.float32)
+        self.indirect = _tex((lw, lh), 'RGBA32F', zero)
+        self.final = _tex((lw, lh), 'RGBA32F', zero)
+        self.frames = 0
+
+    # --- binding for other passes ------------------------------------------------------------
+    @staticmethod
+    def declare(info, first_slot: int) -> int:
+        """Declare surface_cache_lib.glsl's samplers; returns the next free slot."""
+        for k, name in enumerate(("sc_cards", "sc_instances", "sc_albedo", "sc_normal",
+                                  "sc_emissive", "sc_final")):
+            info.sampler(first_slot + k, 'FLOAT_2D', name)
+        return first_slot + 6
+
+    def bind(self, shader):
+        shader.uniform_sampler("sc_cards", self.cards)
+        shader.uniform_sampler("sc_instances", self.instances)
+        shader.uniform_sampler("sc_albedo", self.albedo)
+        shader.uniform_sampler("sc_normal", self.normal)
+        shader.uniform_sampler("sc_emissive", self.emissive)
+        shader.uniform_sampler("sc_final", self.final)
+
+    def stats(self) -> dict:
+        """GPU bytes per texture, from the sizes and formats allocated."""
+        return {"cards_" + k: n * self.BYTES[fmt] for k, (n, fmt) in self._alloc.items()}
+
+    # --- passes --------------------------------------------------------------------------------
+    def light_direct(self, resources: SceneResources, light_tex, light_count: int):
+        """surface_cache_direct: E_direct of every lighting texel."""
+        sh = pass_shader("surface_cache_direct", ("light_lib.glsl",), ("lights",),
+                         (('INT', 'light_count'),))
+        resources.bind(sh)
+        self.bind(sh)
+        sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("lights", light_tex)
+        sh.uniform_int("light_count", int(light_count))
+        sh.image("out_image", self.direct)
+        self._dispatch(sh)
+
+    def combine(self, resources: SceneResources):
+        """surface_cache_combine: final = (direct + indirect) * albedo / pi + emissive."""
+        sh = pass_shader("surface_cache_combine", (), ("sc_direct", "sc_indirect"))
+        resources.bind(sh)
+        self.bind(sh)
+        sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("sc_direct", self.direct)
+        sh.uniform_sampler("sc_indirect", self.indirect)
+        out = _tex(self.packed.lighting_size, 'RGBA32F')
+        sh.image("out_image", out)
+        self._dispatch(sh)
+        self.final = out
+
+    LAYERS = {"albedo": 0, "normal": 1, "direct": 2, "indirect": 3, "position": 4, "cards": 5,
+              "final": 6}
+
+    def layer(self, resources: SceneResources, name: str):
+        """surface_cache_layer: an RGBA32F lighting-atlas texture of one LAYERS view."""
+        sh = pass_shader("surface_cache_layer", (), ("sc_direct", "sc_indirect"),
+                         (('INT', 'layer_mode'),))
+        resources.bind(sh)
+        self.bind(sh)
+        sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("sc_direct", self.direct)
+        sh.uniform_sampler("sc_indirect", self.indirect)
+        sh.uniform_int("layer_mode", self.LAYERS[name])
+        out = _tex(self.packed.lighting_size, 'RGBA32F')
+        sh.image("out_image", out)
+        self._dispatch(sh)
+        return out
+
+    def view(self, resources: SceneResources, gbuf: dict, cam_pos, width: int, height: int,
+             name: str = "final") -> np.ndarray:
+        """surface_cache_view: float32 [h, w, 4], the surface cache's `name` layer sampled at every
+        G-buffer pixel through the cards (w: card weight, 0 where no card sees the pixel)."""
+        sh = pass_shader("surface_cache_view", (), ("gbuf_position", "gbuf_normal"),
+                         (('VEC3', 'cam_pos'),))
+        source = self.final if name == "final" else self.layer(resources, name)
+        resources.bind(sh)
+        self.bind(sh)
+        sh.uniform_sampler("sc_final", source)
+        sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("gbuf_position", gbuf["textures"]["position"])
+        sh.uniform_sampler("gbuf_normal", gbuf["textures"]["normal"])
+        sh.uniform_float("cam_pos", [float(c) for c in np.asarray(cam_pos, np.float64)[:3]])
+        out = _tex((width, height), 'RGBA32F')
+        sh.image("out_image", out)
+        gpu.compute.dispatch(sh, -(-width // GROUP), -(-height // GROUP), 1)
+        return np.asarray(out.read().to_list(), np.float32).reshape(height, width, 4)
+
+    def read_layer(self, resources: SceneResources, name: str) -> np.ndarray:
+        """float32 [h, w, 4] of a LAYERS view of the lighting atlas."""
+        lw, lh = self.packed.lighting_size
+        tex = self.layer(resources, name)
+        return np.asarray(tex.read().to_list(), np.float32).reshape(lh, lw, 4)
+
+    def _dispatch(self, sh):
+        lw, lh = self.packed.lighting_size
+        gpu.compute.dispatch(sh, -(-lw // GROUP), -(-lh // GROUP), 1)
+
+    def read(self, name: str) -> np.ndarray:
+        """float32 [h, w, 4] of a lighting texture ('direct', 'indirect', 'final')."""
+        lw, lh = self.packed.lighting_size
+        return np.asarray(getattr(self, name).read().to_list(), np.float32).reshape(lh, lw, 4)
+
+
+def pass_shader(name: str, libs=(), samplers=(), push=(), images=()):
+    """A compute shader over the lighting atlas (GROUP x GROUP): the SDF and surface-cache
+    samplers, `texel_card`, an RGBA32F `out_image`, extra 2D `samplers`, `push` constants
+    ((type, name)) and `images` ((name, qualifiers)), then sdf_lib, surface_cache_lib, `libs`
+    and glsl/<name>.comp.glsl."""
+    if name not in _SHADERS:
+        info = gpu.types.GPUShaderCreateInfo()
+        info.local_group_size(GROUP, GROUP, 1)
+        slot = SurfaceCache.declare(info, SceneResources.declare(info, 0))
+        for sampler in ("texel_card",) + tuple(samplers):
+            info.sampler(slot, 'FLOAT_2D', sampler)
+            slot += 1
+        info.image(0, 'RGBA32F', 'FLOAT_2D', 'out_image', qualifiers={'WRITE'})
+        for k, (image, quals) in enumerate(images, start=1):
+            info.image(k, 'RGBA32F', 'FLOAT_2D', image, qualifiers=set(quals))
+        for kind, pname in push:
+            info.push_constant(kind, pname)
+        src = [glsl("sdf_lib.glsl"), glsl("surface_cache_lib.glsl")] + [glsl(n) for n in libs]
+        info.compute_source("\n".join(src + [glsl(name + ".comp.glsl")]))
+        _SHADERS[name] = gpu.shader.create_from_info(info)
+    return _SHADERS[name]
