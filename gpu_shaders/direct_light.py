@@ -71,7 +71,8 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky, cam_po
     shader.uniform_int("sky_cones", int(sky_cones))
     gpu.compute.dispatch(shader, -(-width // GROUP), -(-height // GROUP), 1)
     out = {"direct": read_texture(direct, width, height),
-           "combined": read_texture(combined, width, height)}
+           "combined": read_texture(combined, width, height),
+           "textures": {"direct": direct, "combined": combined}}
     out["compile_seconds"] = t1 - t0
     out["shade_seconds"] = time.perf_counter() - t1
     return out

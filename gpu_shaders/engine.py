@@ -41,11 +41,15 @@ from . import sdf_trace
 from .scene_state import state_for
 
 # Extra passes: (name in the render result, channels, channel ids, type).
-PASSES = (("Diffuse Direct", 3, "RGB", 'COLOR'), ("Diffuse Color", 3, "RGB", 'COLOR'),
-          ("Normal", 3, "XYZ", 'VECTOR'))
+PASSES = (("Diffuse Direct", 3, "RGB", 'COLOR'), ("Diffuse Indirect", 3, "RGB", 'COLOR'),
+          ("Diffuse Color", 3, "RGB", 'COLOR'), ("Normal", 3, "XYZ", 'VECTOR'))
 VIEW_PROPERTY = "lumen_preview_view"       # legacy: "DEPTH" selects the DEPTH debug view
-DEBUG_VIEWS = ("COMBINED", "DEPTH", "STEPS", "NORMAL", "ALBEDO", "DIRECT")
-TRACE_VIEWS = ("DEPTH", "STEPS")
+DEBUG_VIEWS = ("COMBINED", "DEPTH", "STEPS", "NORMAL", "ALBEDO", "DIRECT", "INDIRECT", "HYBRID",
+               "SC_FINAL", "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS", "PROBES",
+               "PROBE_FALLBACK")
+TRACE_VIEWS = ("DEPTH", "STEPS", "HYBRID")
+CARD_VIEWS = {"SC_FINAL": "final", "SC_ALBEDO": "albedo", "SC_NORMAL": "normal",
+              "SC_DIRECT": "direct", "SC_INDIRECT": "indirect", "CARDS": "cards"}
 STEPS_FULL_SCALE = 128.0                    # STEPS heat map: red at this many steps
 
 # GPU bytes per resource of the last frame, by scene name (the N-panel reads it).
@@ -132,12 +136,14 @@ def mesh_matrices(depsgraph) -> dict:
             for ob in depsgraph.objects if ob.type == 'MESH'}
 
 
-def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="COMBINED"):
-    """One frame, for render() and view_draw alike: sync the scene state, run the passes.
+def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="COMBINED",
+          final=True):
+    """One frame, for render() (final: F12, accumulates GI from scratch) and view_draw (one more
+    GI iteration into the history) alike: sync the scene state, run the passes.
     Returns {pass name: float32 [h, w, C]} and fills LAST_RENDER."""
     from ..operators.extract import extract_scene
     from ..operators.lights import light_table, world_colour
-    from . import direct_light, gbuffer
+    from . import composite, direct_light, gbuffer, gi, gi_settings
 
     t0 = time.perf_counter()
     bake, source = scene_bake(scene)
@@ -153,23 +159,48 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
     changes = state.sync(bake, matrices, lights)
     res = state.resources
     t2 = time.perf_counter()
-    MEMORY[scene.name] = state.stats()
     LAST_RENDER.update(source=source, width=width, height=height, view=view,
                        changes=sorted(changes), uploads=dict(state.uploads),
-                       gpu_bytes=state.stats(), bricks=res.packed.bricks,
+                       bricks=res.packed.bricks,
                        atlas_size=list(res.packed.atlas_size), upload_seconds=res.upload_seconds,
                        extract_seconds=t1 - t0, sync_seconds=t2 - t1)
     if view in TRACE_VIEWS:
         inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
-        out = sdf_trace.trace(res, inv_vp, width, height, t_max=clip_end)
+        if view == "HYBRID":
+            out = _hybrid_trace(state, scene, cam_pos, inv_vp, width, height, clip_end)
+            img = hybrid_colours(out["hit"], out["global_steps"])
+        else:
+            out = sdf_trace.trace(res, inv_vp, width, height, t_max=clip_end)
+            img = depth_grey(out["hit"]) if view == "DEPTH" else steps_heat(out["steps"])
         LAST_RENDER.update(out, inv_view_proj=inv_vp, t_max=clip_end)
-        img = depth_grey(out["hit"]) if view == "DEPTH" else steps_heat(out["steps"])
+        MEMORY[scene.name] = state.stats()
+        LAST_RENDER["gpu_bytes"] = MEMORY[scene.name]
         return {"Combined": img}
+    gi_cfg = gi_settings.from_scene(scene.lumen)
     sky, sky_notes = world_colour(scene)
     gbuf = gbuffer.render_gbuffer(objects, view_proj, width, height)
     t3 = time.perf_counter()
-    out = direct_light.shade(res, gbuf, state.lights, sky, cam_pos, width, height)
+    out = direct_light.shade(res, gbuf, state.lights, sky, cam_pos, width, height,
+                             sky_cones=0 if gi_cfg.enabled else direct_light.SKY_CONES,
+                             light_texture=state.light_texture)
     t4 = time.perf_counter()
+    indirect = np.zeros_like(out["direct"])
+    combined = out["combined"]
+    gi_info = {}
+    if gi_cfg.enabled:
+        view_key = (np.asarray(view_proj, np.float64).tobytes(), width, height)
+        gi_out = gi.indirect_light(state, gbuf, gi_cfg, view_key, cam_pos, sky,
+                                   min(float(clip_end), 100.0), width, height, changes, final)
+        comp = composite.composite(gbuf, out["textures"]["direct"], gi_out["texture"], sky,
+                                   width, height)
+        indirect, combined = comp["indirect"], comp["combined"]
+        gi_info = dict(gi_seconds=gi_out["timings"]["total"], gi_timings=gi_out["timings"],
+                       gi_iterations=gi_out["iterations"], gi_converged=gi_out["converged"],
+                       gi_settings=gi_cfg.__dict__.copy())
+        LAST_RENDER["indirect_irradiance"] = np.asarray(
+            gi_out["texture"].read().to_list(), np.float32).reshape(height, width, 4)
+    t5 = time.perf_counter()
+    MEMORY[scene.name] = state.stats()
     LAST_RENDER.update(
         view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
         sky=sky, notes=list(warnings) + sky_notes, triangles=gbuf["triangles"],
@@ -177,13 +208,67 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
         position=gbuf["position"], normal=gbuf["normal"], albedo=gbuf["albedo"],
-        emission=gbuf["emission"], direct=out["direct"], combined=out["combined"],
-        frame_seconds=t4 - t0)
-    shown = {"COMBINED": out["combined"], "DIRECT": out["direct"], "ALBEDO": gbuf["albedo"],
-             "NORMAL": gbuf["normal"] * 0.5 + 0.5}[view].copy()
-    shown[..., 3] = 1.0
-    return {"Combined": shown, "Diffuse Direct": out["direct"],
+        emission=gbuf["emission"], direct=out["direct"], indirect=indirect, combined=combined,
+        gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, **gi_info)
+    shown = _debug_image(view, state, gbuf, cam_pos, width, height, combined, out["direct"],
+                         indirect, gi_cfg)
+    return {"Combined": shown, "Diffuse Direct": out["direct"], "Diffuse Indirect": indirect,
             "Diffuse Color": gbuf["albedo"], "Normal": gbuf["normal"]}
+
+
+def hybrid_colours(hit: np.ndarray, global_steps: np.ndarray) -> np.ndarray:
+    """RGBA [h, w, 4]: green where the mesh SDFs hit, blue where the global SDF did, black misses."""
+    rgba = np.zeros(hit.shape + (4,), np.float32)
+    rgba[..., 3] = 1.0
+    hits = hit >= 0
+    rgba[hits & (global_steps == 0), 1] = 1.0
+    rgba[hits & (global_steps > 0), 2] = 1.0
+    return rgba
+
+
+def _hybrid_trace(state, scene, cam_pos, inv_vp, width, height, clip_end):
+    from . import gi, gi_settings
+    from .global_sdf import trace_hybrid
+
+    cfg = gi_settings.from_scene(scene.lumen)
+    if not cfg.enabled:
+        cfg = gi_settings.settings("MEDIUM")
+    g = gi._global_sdf(state, cfg)
+    g.update(cam_pos, state.gi_frame, "objects" in state.last_changes)
+    return trace_hybrid(g, inv_vp, width, height, t_max=clip_end)
+
+
+def _debug_image(view, state, gbuf, cam_pos, width, height, combined, direct, indirect, gi_cfg):
+    """The image Combined shows for a debug view (a copy, alpha 1)."""
+    if view in CARD_VIEWS:
+        shown = state.surface_cache.view(state.resources, gbuf, cam_pos, width, height,
+                                         CARD_VIEWS[view])
+        shown[shown[..., 3] < 0] = 0.0
+    elif view == "PROBES" and gi_cfg.enabled:
+        shown = _probe_atlas_image(state, width, height)
+    elif view == "PROBE_FALLBACK" and gi_cfg.enabled:
+        w = LAST_RENDER["indirect_irradiance"][..., 3]
+        shown = np.zeros((height, width, 4), np.float32)
+        shown[..., 0] = (w == 0).astype(np.float32)
+        shown[..., 1] = (w > 0).astype(np.float32)
+    else:
+        shown = {"DIRECT": direct, "INDIRECT": indirect, "ALBEDO": gbuf["albedo"],
+                 "NORMAL": gbuf["normal"] * 0.5 + 0.5}.get(view, combined).copy()
+    shown = np.array(shown, np.float32)
+    shown[..., 3] = 1.0
+    return shown
+
+
+def _probe_atlas_image(state, width, height):
+    """The probe radiance atlas (one probe_res^2 tile per probe) scaled to the image size."""
+    atlas = np.asarray(state.probes.textures["filtered"].read().to_list(), np.float32)
+    t = state.probes.textures["filtered"]
+    atlas = atlas.reshape(t.height, t.width, 4)
+    ys = np.minimum((np.arange(height) * t.height) // height, t.height - 1)
+    xs = np.minimum((np.arange(width) * t.width) // width, t.width - 1)
+    img = atlas[ys][:, xs].copy()
+    img[..., 3] = 1.0
+    return img
 
 
 class LumenGIRenderEngine(bpy.types.RenderEngine):
@@ -209,7 +294,7 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
                 raise RuntimeError(f"scene {scene.name!r} has no camera")
             vp, cam_pos, clip_end = view_projection(depsgraph, scene.camera, width, height)
             passes = frame(depsgraph, scene, vp, cam_pos, clip_end, width, height,
-                           debug_view(scene))
+                           debug_view(scene), final=True)
         except Exception as exc:   # reported, never raised into Blender's render job
             import traceback
             self.report({'ERROR'}, f"Lumen GI: {exc}")
@@ -270,10 +355,13 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         try:
             img = frame(depsgraph, scene, np.array(rd.perspective_matrix, np.float64),
                         np.array(rd.view_matrix.inverted().translation, np.float64),
-                        float(context.space_data.clip_end), w, h, debug_view(scene))["Combined"]
+                        float(context.space_data.clip_end), w, h, debug_view(scene),
+                        final=False)["Combined"]
         except Exception as exc:
             LAST_RENDER["error"] = str(exc)
             return
+        if LAST_RENDER.get("gi_converged") is False:
+            self.tag_redraw()              # progressive: keep accumulating GI frames
         tex = gpu.types.GPUTexture((w, h), format='RGBA16F', data=float_buffer(img))
         shader = gpu.shader.from_builtin('IMAGE')
         batch = batch_for_shader(shader, 'TRI_FAN', {

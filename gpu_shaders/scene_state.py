@@ -70,6 +70,11 @@ class SceneState:
         self.light_texture = None    # RGBA32F, 4 texels per light row (at least one row)
         self.cards_key = None        # card_key() of the surface cache on the GPU
         self.surface_cache = None    # surface_cache.SurfaceCache
+        self.global_sdf = None       # global_sdf.GlobalSDF (gi.py makes it for the resources)
+        self.probes = None           # screen_probes.ScreenProbes (gi.py, per image size)
+        self.gi_frame = 0            # frames of GI run (jitter sequences, clipmap cadence)
+        self.gi_view_key = None      # camera + size of the probes' history
+        self.gi_sky = None
         self.bake = None
 
     def plan(self, bake, matrices: dict, lights) -> set:
@@ -160,4 +165,9 @@ class SceneState:
             out["lights"] = max(len(self.lights), 1) * 4 * 16     # RGBA32F, 4 texels per light
         if self.surface_cache is not None:
             out.update(self.surface_cache.stats())
+        if self.global_sdf is not None:
+            out.update({"global_sdf_" + k: v for k, v in self.global_sdf.stats().items()
+                        if k != "total"})
+        if self.probes is not None:
+            out.update(self.probes.stats())
         return out

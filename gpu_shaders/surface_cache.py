@@ -11,8 +11,9 @@ Textures (card_packing.py has the layouts):
         direct    E_direct, irradiance from the lights with SDF shadows (W/m^2)
         indirect  E_indirect, irradiance from rays into the scene, read from `final` (next file)
         final     (E_direct + E_indirect) * albedo / pi + emissive: the radiance rays read at hits
-The passes, one GLSL file each: surface_cache_direct (lights), surface_cache_indirect
-(surface_cache_indirect.py), surface_cache_combine (final). Reading last frame's `final` in the
+The passes, one GLSL file each, run by this class's methods: surface_cache_direct (lights),
+surface_cache_indirect (rays through gi_trace_lib.glsl), surface_cache_combine (final), and for
+the debug views surface_cache_layer / surface_cache_view. Reading last frame's `final` in the
 indirect pass is what makes light bounce again every frame (the lecture's multi-bounce).
 Needs a GPU context.
 """
@@ -123,6 +124,30 @@ class SurfaceCache:
         sh.image("out_image", self.direct)
         self._dispatch(sh)
 
+    def light_indirect(self, resources: SceneResources, gsdf, sky, rays: int, frame: int,
+                       blend: float, t_max: float):
+        """surface_cache_indirect: E_indirect = mix(last E_indirect, this frame's rays, blend)."""
+        sh = pass_shader("surface_cache_indirect",
+                         ("global_sdf_lib.glsl", "sampling_lib.glsl", "gi_trace_lib.glsl"),
+                         ("sc_indirect_prev",),
+                         (('VEC3', 'sky'), ('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 'blend'),
+                          ('FLOAT', 't_max')), gsdf=True)
+        resources.bind(sh)
+        self.bind(sh)
+        gsdf.bind(sh)
+        sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("sc_indirect_prev", self.indirect)
+        sh.uniform_float("sky", [float(c) for c in np.asarray(sky, np.float64)[:3]])
+        sh.uniform_int("rays", int(rays))
+        sh.uniform_int("frame", int(frame))
+        sh.uniform_float("blend", float(blend))
+        sh.uniform_float("t_max", float(t_max))
+        out = _tex(self.packed.lighting_size, 'RGBA32F')
+        sh.image("out_image", out)
+        self._dispatch(sh)
+        self.indirect = out
+        self.frames += 1
+
     def combine(self, resources: SceneResources):
         """surface_cache_combine: final = (direct + indirect) * albedo / pi + emissive."""
         sh = pass_shader("surface_cache_combine", (), ("sc_direct", "sc_indirect"))
@@ -189,11 +214,11 @@ class SurfaceCache:
         return np.asarray(getattr(self, name).read().to_list(), np.float32).reshape(lh, lw, 4)
 
 
-def pass_shader(name: str, libs=(), samplers=(), push=(), images=()):
+def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False):
     """A compute shader over the lighting atlas (GROUP x GROUP): the SDF and surface-cache
     samplers, `texel_card`, an RGBA32F `out_image`, extra 2D `samplers`, `push` constants
-    ((type, name)) and `images` ((name, qualifiers)), then sdf_lib, surface_cache_lib, `libs`
-    and glsl/<name>.comp.glsl."""
+    ((type, name)) and `images` ((name, qualifiers)), with gsdf the global SDF's samplers and
+    constants, then sdf_lib, surface_cache_lib, `libs` and glsl/<name>.comp.glsl."""
     if name not in _SHADERS:
         info = gpu.types.GPUShaderCreateInfo()
         info.local_group_size(GROUP, GROUP, 1)
@@ -201,6 +226,9 @@ def pass_shader(name: str, libs=(), samplers=(), push=(), images=()):
         for sampler in ("texel_card",) + tuple(samplers):
             info.sampler(slot, 'FLOAT_2D', sampler)
             slot += 1
+        if gsdf:
+            from .global_sdf import GlobalSDF
+            slot = GlobalSDF.declare(info, slot)
         info.image(0, 'RGBA32F', 'FLOAT_2D', 'out_image', qualifiers={'WRITE'})
         for k, (image, quals) in enumerate(images, start=1):
             info.image(k, 'RGBA32F', 'FLOAT_2D', image, qualifiers=set(quals))

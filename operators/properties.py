@@ -56,8 +56,34 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                ('STEPS', "Trace Steps", "SDF trace only: sphere-tracing steps as a heat map"),
                ('NORMAL', "Normal", "G-buffer world normal"),
                ('ALBEDO', "Albedo", "G-buffer base colour"),
-               ('DIRECT', "Direct Light", "Diffuse direct light (albedo excluded)")),
+               ('DIRECT', "Direct Light", "Diffuse direct light (albedo excluded)"),
+               ('INDIRECT', "Indirect Light", "Diffuse indirect light only (albedo excluded)"),
+               ('HYBRID', "Mesh vs Global SDF", "SDF trace only: green = hit in the mesh SDFs "
+                "(first 1.8 m), blue = hit in the global SDF clipmaps, black = miss"),
+               ('SC_FINAL', "Surface Cache", "The cards' final lighting, seen through the cards "
+                "(magenta: no card sees the point)"),
+               ('SC_ALBEDO', "Surface Cache Albedo", "The cards' albedo, seen through the cards"),
+               ('SC_NORMAL', "Surface Cache Normal", "The cards' normals, seen through the cards"),
+               ('SC_DIRECT', "Surface Cache Direct", "The cards' direct light (E / pi)"),
+               ('SC_INDIRECT', "Surface Cache Indirect", "The cards' indirect light (E / pi)"),
+               ('CARDS', "Cards", "Each card in its own colour over the geometry"),
+               ('PROBES', "Probe Atlas", "The screen probes' octahedral radiance, one tile each"),
+               ('PROBE_FALLBACK', "Probe Interpolation", "Green: interpolated from probes on the "
+                "pixel's plane, red: fallback (no probe on that plane)")),
         default='COMBINED')
+    gi_quality: EnumProperty(
+        name="GI Quality", description="Budgets of the global illumination passes",
+        items=(('OFF', "Off", "Direct light and SDF sky occlusion only"),
+               ('LOW', "Low", "4 rays per card texel, a 16 px probe grid, coarse global SDF"),
+               ('MEDIUM', "Medium", "8 rays per card texel, a 16 px probe grid"),
+               ('HIGH', "High", "16 rays per card texel, an 8 px probe grid, 64^3 clipmaps")),
+        default='MEDIUM')
+    bounces: IntProperty(
+        name="Bounces", description="Surface-cache bounces an F12 render converges before it "
+        "gathers (the viewport keeps bouncing every frame)", default=3, min=1, max=16)
+    render_frames: IntProperty(
+        name="Render Frames", description="F12 temporal accumulation: jittered GI frames averaged",
+        default=8, min=1, max=256)
 
 
 class LumenObjectSettings(bpy.types.PropertyGroup):

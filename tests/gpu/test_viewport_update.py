@@ -41,6 +41,9 @@ scene.camera = cam
 cam.location = (0.0, -5.0, 4.0)
 cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.3)) - cam.location).to_track_quat("-Z", "Y").to_euler()
 scene.render.engine = "LUMEN_GI"
+scene.lumen.gi_quality = "LOW"
+scene.lumen.render_frames = 1
+scene.lumen.bounces = 1
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 res, err = bake()

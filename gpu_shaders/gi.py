@@ -1,0 +1,91 @@
+"""Indirect light of one frame, in the order of the passes (the lecture's pipeline):
+
+    global SDF clipmaps  (global_sdf.py: rebuilt when objects moved, levels on their cadence)
+    surface cache        direct light per card texel, then per iteration: indirect rays reading
+                         last iteration's final light (one more bounce each time), combine
+    screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py)
+
+`indirect_light` returns the per-pixel indirect irradiance texture. For F12 renders
+(`final=True`) everything accumulated is reset first and GISettings.render_schedule() runs:
+bounces - 1 surface-cache iterations, then render_frames iterations of cache + probes averaged,
+so a render is deterministic. In the viewport one iteration runs per redraw, blended into the
+history (exponential over `history` frames; reset when the camera or the scene changes).
+Needs a GPU context.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .gi_settings import GISettings
+
+
+def _global_sdf(state, gi: GISettings):
+    from .global_sdf import GlobalSDF
+
+    g = state.global_sdf
+    if g is None or g.resources is not state.resources or g.n != gi.gsdf_n \
+            or abs(g.base_voxel - gi.gsdf_voxel) > 1e-9:
+        g = state.global_sdf = GlobalSDF(state.resources, n=gi.gsdf_n, base_voxel=gi.gsdf_voxel)
+    return g
+
+
+def _probes(state, gi: GISettings, width: int, height: int):
+    from .screen_probes import ScreenProbes
+
+    p = state.probes
+    if p is None or (p.width, p.height, p.tile, p.res) != (width, height, gi.probe_tile, gi.probe_res):
+        p = state.probes = ScreenProbes(width, height, gi.probe_tile, gi.probe_res)
+    return p
+
+
+def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_max: float,
+                   width: int, height: int, changes: set, final: bool) -> dict:
+    """Run the GI passes; returns {'texture': per-pixel E_indirect, 'timings': {...},
+    'iterations': n, 'converged': bool (viewport: history full)}."""
+    t0 = time.perf_counter()
+    res, cache = state.resources, state.surface_cache
+    gsdf = _global_sdf(state, gi)
+    probes = _probes(state, gi, width, height)
+    scene_changed = bool(changes & {"atlas", "objects", "cards", "lights"}) \
+        or state.gi_sky is None or not np.allclose(state.gi_sky, sky)
+    if final or scene_changed or view_key != state.gi_view_key:
+        probes.history = None                    # the pixels' history no longer applies
+    if final or scene_changed:
+        cache.reset_lighting()
+    if final:
+        state.gi_frame = 0                       # the same jitter sequence every render
+    state.gi_view_key, state.gi_sky = view_key, np.asarray(sky, np.float64).copy()
+    objects_changed = bool(changes & {"atlas", "objects"})
+    t1 = time.perf_counter()
+    cache.light_direct(res, state.light_texture, len(state.lights))
+    t2 = time.perf_counter()
+    timings = {"gsdf": 0.0, "sc_indirect": 0.0, "probes": 0.0}
+    if final:
+        schedule = gi.render_schedule()
+    else:
+        n = cache.frames
+        sc_blend = max(1.0 / (n + 1), 1.0 / gi.history)
+        m = probes.history is not None and probes.frames or 0
+        schedule = [(sc_blend, max(1.0 / (m + 1), 1.0 / gi.history))]
+    result = None
+    for sc_blend, px_blend in schedule:
+        frame = state.gi_frame
+        state.gi_frame += 1
+        a = time.perf_counter()
+        gsdf.update(cam_pos, frame, objects_changed)
+        objects_changed = False
+        b = time.perf_counter()
+        cache.light_indirect(res, gsdf, sky, gi.sc_rays, frame, sc_blend, t_max)
+        cache.combine(res)
+        c = time.perf_counter()
+        if px_blend is not None:
+            new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max)
+            result = probes.temporal(new, px_blend)
+        timings["gsdf"] += b - a
+        timings["sc_indirect"] += c - b
+        timings["probes"] += time.perf_counter() - c
+    timings.update(setup=t1 - t0, sc_direct=t2 - t1, total=time.perf_counter() - t0)
+    return {"texture": result, "timings": timings, "iterations": len(schedule),
+            "converged": final or probes.frames >= gi.history}

@@ -1,0 +1,26 @@
+/* Composite: Combined = albedo * (Diffuse Direct + Diffuse Indirect) + emission (Cycles' passes:
+ * Diffuse Direct / Indirect = E / pi without the albedo), the sky on the background.
+ * Inputs: gbuf_position, gbuf_albedo, gbuf_emission, direct (E_direct / pi), indirect (E_indirect,
+ * irradiance); sky. Outputs: out_image = Combined, indirect_out = E_indirect / pi.
+ */
+#define PI 3.14159265358979
+
+void main()
+{
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(out_image);
+  if (px.x >= size.x || px.y >= size.y) {
+    return;
+  }
+  if (texelFetch(gbuf_position, px, 0).w < 0.5) {
+    imageStore(out_image, px, vec4(sky, 1.0));
+    imageStore(indirect_out, px, vec4(0.0, 0.0, 0.0, 1.0));
+    return;
+  }
+  vec3 ind = texelFetch(indirect, px, 0).rgb / PI;
+  vec3 dir = texelFetch(direct, px, 0).rgb;
+  vec3 albedo = texelFetch(gbuf_albedo, px, 0).rgb;
+  vec3 emission = texelFetch(gbuf_emission, px, 0).rgb;
+  imageStore(out_image, px, vec4(albedo * (dir + ind) + emission, 1.0));
+  imageStore(indirect_out, px, vec4(ind, 1.0));
+}

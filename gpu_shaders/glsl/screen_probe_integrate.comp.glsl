@@ -1,0 +1,58 @@
+/* Screen probes, per-pixel integration (lecture: "Final integration with SH" and "Plane distance
+ * weighting of Probe Interpolation"): the 4 probes around the pixel (tile centres as the bilinear
+ * grid), weighted by probe_corner_weights (bilinear x plane distance); irradiance
+ * E = sum w_i sh9_irradiance(c_i, n). Where no probe lies on the pixel's plane (lighting_valid 0:
+ * silhouettes, thin objects) the valid probes are used by their bilinear weights alone, and the
+ * pixel is flagged (w = 0) for the debug view.
+ * Inputs: gbuf_position, gbuf_normal, probe_info, probe_sh; cam_pos, probe_tile.
+ * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0 fallback, -1 background.
+ */
+void main()
+{
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(out_image);
+  if (px.x >= size.x || px.y >= size.y) {
+    return;
+  }
+  vec4 pos = texelFetch(gbuf_position, px, 0);
+  if (pos.w < 0.5) {
+    imageStore(out_image, px, vec4(0.0, 0.0, 0.0, -1.0));
+    return;
+  }
+  vec3 n = normalize(texelFetch(gbuf_normal, px, 0).xyz);
+  if (dot(n, cam_pos - pos.xyz) < 0.0) {
+    n = -n;
+  }
+  ivec2 grid = textureSize(probe_info, 0);
+  vec2 g = (vec2(px) + 0.5) / float(probe_tile) - 0.5;
+  ivec2 i0 = ivec2(floor(g));
+  vec2 f = g - vec2(i0);
+  ivec2 q[4] = ivec2[4](i0, i0 + ivec2(1, 0), i0 + ivec2(0, 1), i0 + ivec2(1, 1));
+  vec4 info[4];
+  vec4 valid;
+  for (int k = 0; k < 4; k++) {
+    q[k] = clamp(q[k], ivec2(0), grid - 1);
+    info[k] = texelFetch(probe_info, q[k], 0);
+    valid[k] = info[k].w > 0.0 ? 1.0 : 0.0;
+  }
+  float depth = max(distance(pos.xyz, cam_pos), 1e-4);
+  float ok;
+  vec4 w = probe_corner_weights(f, info[0].xyz, info[1].xyz, info[2].xyz, info[3].xyz, valid,
+                                vec4(n, dot(n, pos.xyz)), depth, ok);
+  if (ok < 0.5) {
+    vec4 bw = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y) * valid;
+    w = bw / max(dot(bw, vec4(1.0)), 1e-6);
+  }
+  vec3 E = vec3(0.0);
+  for (int k = 0; k < 4; k++) {
+    if (w[k] <= 0.0) {
+      continue;
+    }
+    vec3 c[9];
+    for (int i = 0; i < 9; i++) {
+      c[i] = texelFetch(probe_sh, q[k] * 3 + ivec2(i % 3, i / 3), 0).rgb;
+    }
+    E += w[k] * sh9_irradiance(c, n);
+  }
+  imageStore(out_image, px, vec4(max(E, vec3(0.0)), ok));
+}

@@ -1,0 +1,142 @@
+"""Screen probes (lecture 21, "Screen Space Probe" through "Final integration with SH"): the final
+gather of indirect light for every pixel, from few probes.
+
+Per frame, one GLSL pass each:
+    screen_probe_place      one probe per tile x tile pixels on a jittered G-buffer pixel
+    screen_probe_trace      res x res octahedral rays per probe (whole sphere, world directions,
+                            jittered per frame) through gi_trace_lib: surface cache at hits, sky
+    screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
+                            hit-distance clamp
+    screen_probe_sh         9 SH coefficients per probe (exact texel solid angles)
+    screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, SH irradiance
+    screen_probe_temporal   mix with the history (running mean for F12, exponential in the viewport)
+Output: per-pixel indirect irradiance E (W/m^2); the composite divides by pi (Diffuse Indirect).
+Needs a GPU context.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import compute
+from .probe_math import hammersley
+
+GI_LIBS = ("sampling_lib.glsl", "octahedral_lib.glsl", "gi_trace_lib.glsl")
+
+
+class ScreenProbes:
+    """Probe textures and the temporal history for one image size."""
+
+    def __init__(self, width: int, height: int, tile: int = 16, res: int = 8):
+        self.width, self.height, self.tile, self.res = int(width), int(height), int(tile), int(res)
+        self.grid = (-(-self.width // self.tile), -(-self.height // self.tile))
+        self.history = None          # RGBA32F [h, w]: accumulated E
+        self.frames = 0              # frames in the history
+        self.textures = {}
+
+    def jitter(self, frame: int):
+        """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets."""
+        h = hammersley(16)
+        tile = np.minimum((h[frame % 16] * self.tile).astype(int), self.tile - 1)
+        ray = np.mod(h[(frame * 7 + 5) % 16] + 0.5 / 16.0, 1.0)
+        return tile, ray
+
+    def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float):
+        """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
+        0 fallback, -1 background)."""
+        gw, gh = self.grid
+        r = self.res
+        tile_j, ray_j = self.jitter(frame)
+        g = gbuf["textures"]
+        tex = self.textures
+        tex["info"] = compute.texture((gw, gh))
+        tex["normal"] = compute.texture((gw, gh))
+        sh = compute.shader("screen_probe_place", samplers=("gbuf_position", "gbuf_normal"),
+                            images=("out_image", "probe_normal_out"),
+                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('VEC2', 'tile_jitter')))
+        sh.uniform_sampler("gbuf_position", g["position"])
+        sh.uniform_sampler("gbuf_normal", g["normal"])
+        sh.uniform_float("cam_pos", compute.vec(cam_pos))
+        sh.uniform_int("probe_tile", self.tile)
+        sh.uniform_float("tile_jitter", [float(tile_j[0]), float(tile_j[1])])
+        sh.image("out_image", tex["info"])
+        sh.image("probe_normal_out", tex["normal"])
+        compute.dispatch(sh, gw, gh)
+
+        tex["radiance"] = compute.texture((gw * r, gh * r))
+        sh = compute.shader("screen_probe_trace", samplers=("probe_info", "probe_normal"),
+                            push=(('VEC3', 'sky'), ('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
+                                  ('FLOAT', 't_max')),
+                            libs=GI_LIBS, scene=True, surface_cache=True, global_sdf=True)
+        resources.bind(sh)
+        cache.bind(sh)
+        gsdf.bind(sh)
+        sh.uniform_sampler("probe_info", tex["info"])
+        sh.uniform_sampler("probe_normal", tex["normal"])
+        sh.uniform_float("sky", compute.vec(sky))
+        sh.uniform_int("probe_res", r)
+        sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
+        sh.uniform_float("t_max", float(t_max))
+        sh.image("out_image", tex["radiance"])
+        compute.dispatch(sh, gw * r, gh * r)
+
+        tex["filtered"] = compute.texture((gw * r, gh * r))
+        sh = compute.shader("screen_probe_filter",
+                            samplers=("probe_info", "probe_normal", "probe_radiance"),
+                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')),
+                            libs=("octahedral_lib.glsl",))
+        sh.uniform_sampler("probe_info", tex["info"])
+        sh.uniform_sampler("probe_normal", tex["normal"])
+        sh.uniform_sampler("probe_radiance", tex["radiance"])
+        sh.uniform_int("probe_res", r)
+        sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
+        sh.image("out_image", tex["filtered"])
+        compute.dispatch(sh, gw * r, gh * r)
+
+        tex["sh"] = compute.texture((gw * 3, gh * 3))
+        sh = compute.shader("screen_probe_sh", samplers=("probe_info", "probe_filtered"),
+                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')),
+                            libs=("octahedral_lib.glsl", "sh_lib.glsl"))
+        sh.uniform_sampler("probe_info", tex["info"])
+        sh.uniform_sampler("probe_filtered", tex["filtered"])
+        sh.uniform_int("probe_res", r)
+        sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
+        sh.image("out_image", tex["sh"])
+        compute.dispatch(sh, gw, gh)
+
+        tex["integrated"] = compute.texture((self.width, self.height))
+        sh = compute.shader("screen_probe_integrate",
+                            samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_sh"),
+                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile')),
+                            libs=("sh_lib.glsl", "probe_interp_lib.glsl"))
+        sh.uniform_sampler("gbuf_position", g["position"])
+        sh.uniform_sampler("gbuf_normal", g["normal"])
+        sh.uniform_sampler("probe_info", tex["info"])
+        sh.uniform_sampler("probe_sh", tex["sh"])
+        sh.uniform_float("cam_pos", compute.vec(cam_pos))
+        sh.uniform_int("probe_tile", self.tile)
+        sh.image("out_image", tex["integrated"])
+        compute.dispatch(sh, self.width, self.height)
+        return tex["integrated"]
+
+    def temporal(self, new, blend: float):
+        """history = mix(history, new, blend) (blend 1 or no history: start again)."""
+        if self.history is None or blend >= 1.0:
+            self.history, self.frames = new, 1
+            return new
+        out = compute.texture((self.width, self.height))
+        sh = compute.shader("screen_probe_temporal", samplers=("indirect_new", "indirect_history"),
+                            push=(('FLOAT', 'blend'),))
+        sh.uniform_sampler("indirect_new", new)
+        sh.uniform_sampler("indirect_history", self.history)
+        sh.uniform_float("blend", float(blend))
+        sh.image("out_image", out)
+        compute.dispatch(sh, self.width, self.height)
+        self.history, self.frames = out, self.frames + 1
+        return out
+
+    def stats(self) -> dict:
+        """GPU bytes of the probe textures (RGBA32F) and the history."""
+        out = {"probes_" + k: t.width * t.height * 16 for k, t in self.textures.items()}
+        if self.history is not None:
+            out["probes_history"] = self.width * self.height * 16
+        return out

@@ -1,0 +1,116 @@
+"""Global illumination of the LUMEN_GI engine (llvmpipe, F12 through bpy) against closed forms.
+
+- Energy conservation of the bounce: inside a closed room whose walls all have albedo rho and
+  emit radiance Le, every surface converges to L = Le / (1 - rho) (the geometric series of
+  bounces), whatever the room's shape. rho = 0.5, Le = 0.5 -> L = 1. An F12 render with B
+  surface-cache bounces plus the screen-probe gather holds B + 2 terms of the series:
+  1 - rho^(B + 2) of L (B = 8: 0.999).
+- White furnace: a convex object (a sphere) of albedo rho under a uniform sky L_sky sees only
+  the sky, so its radiance is rho * L_sky everywhere (rho = 0.8, L_sky = 1).
+Images are saved in the test's folder (combined.npy) for inspection.
+"""
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent / "blender")]
+
+from blender_runner import run_python  # noqa: E402
+
+COMMON = """
+import mathutils
+from lumen_gi.gpu_shaders import engine
+
+def finish(size, quality="LOW", frames=4, bounces=8):
+    scene = bpy.context.scene
+    scene.render.engine = "LUMEN_GI"
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.lumen.gi_quality = quality
+    scene.lumen.render_frames = frames
+    scene.lumen.bounces = bounces
+    res, err = bake()
+    assert err is None, err
+    bpy.ops.render.render()
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    np.save("combined.npy", R["combined"])
+    np.save("indirect.npy", R["indirect"])
+    np.save("position.npy", R["position"])
+    return R
+
+def camera(location, target, lens=18.0):
+    cam = link(bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam")))
+    bpy.context.scene.camera = cam
+    cam.location = location
+    cam.rotation_euler = (mathutils.Vector(target) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    cam.data.lens = lens
+    return cam
+
+def world(colour):
+    w = bpy.data.worlds.new("World")
+    bpy.context.scene.world = w
+    w.use_nodes = True
+    w.node_tree.nodes["Background"].inputs["Color"].default_value = (*colour, 1.0)
+    w.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+"""
+
+ROOM = COMMON + """
+scene = empty_scene(voxel_density=10.0, cache_dir="cache")
+mat = principled("Wall", (0.5, 0.5, 0.5), emission=(1.0, 1.0, 1.0), strength=0.5)
+half, t = (1.5, 1.2, 1.0), 0.2
+walls = []
+for axis in range(3):
+    for sign in (-1.0, 1.0):
+        size = [2 * h + 2 * t for h in half]
+        size[axis] = t
+        loc = [0.0, 0.0, 0.0]
+        loc[axis] = sign * (half[axis] + t / 2)
+        bpy.ops.mesh.primitive_cube_add(size=1.0, location=loc)
+        ob = bpy.context.object
+        ob.name = f"Wall{axis}{'+' if sign > 0 else '-'}"
+        ob.scale = size
+        bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
+        ob.data.materials.append(mat)
+world((0.0, 0.0, 0.0))
+camera((-1.2, -0.9, -0.3), (1.0, 0.6, 0.1))
+R = finish(48)
+emit(gi=R["gi_timings"], iterations=R["gi_iterations"])
+"""
+
+FURNACE = COMMON + """
+scene = empty_scene(voxel_density=24.0, cache_dir="cache")
+bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.6)
+ball = bpy.context.object
+ball.data.materials.append(principled("Ball", (0.8, 0.8, 0.8)))
+world((1.0, 1.0, 1.0))
+camera((0.0, -3.0, 0.8), (0.0, 0.0, 0.0), lens=50.0)
+R = finish(48, frames=4, bounces=2)
+emit(gi=R["gi_timings"])
+"""
+
+
+def test_closed_room_converges_to_the_geometric_series(tmp_path):
+    run = run_python(ROOM, tmp_path, timeout=300)
+    assert run.returncode == 0, run.explain()
+    img = np.load(tmp_path / "combined.npy")[..., :3]
+    lum = img.mean(axis=-1)
+    expected = 0.5 / (1.0 - 0.5) * (1.0 - 0.5 ** 10)
+    print(run.result, lum.mean(), np.percentile(lum, [1, 5, 50, 95, 99]))
+    assert abs(lum.mean() - expected) <= 0.03 * expected
+    assert (np.abs(lum - expected) <= 0.1 * expected).mean() >= 0.95
+
+
+def test_white_furnace_sphere(tmp_path):
+    run = run_python(FURNACE, tmp_path, timeout=300)
+    assert run.returncode == 0, run.explain()
+    img = np.load(tmp_path / "combined.npy")[..., :3]
+    hit = np.load(tmp_path / "position.npy")[..., 3] > 0.5
+    lum = img.mean(axis=-1)
+    assert hit.mean() > 0.2
+    print(run.result, lum[hit].mean(), np.percentile(lum[hit], [1, 5, 50, 95, 99]))
+    np.testing.assert_allclose(lum[~hit], 1.0, atol=1e-6)          # the sky itself
+    assert abs(lum[hit].mean() - 0.8) <= 0.02 * 0.8
+    assert (np.abs(lum[hit] - 0.8) <= 0.05 * 0.8).mean() >= 0.95
