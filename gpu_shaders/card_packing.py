@@ -4,7 +4,8 @@ The bake's card atlas (lumen_addon.atlas) holds each *mesh's* cards once: albedo
 emissive, opacity are properties of the mesh. Lighting is not: two instances of one mesh stand in
 different light. So the lighting lives in a second atlas with one rectangle per (instance, card),
 packed with the same skyline packer (no padding: the shaders clamp their reads to the card's own
-rectangle), and every lighting texel knows its card row.
+rectangle; each card reserves whole 4x4 blocks, so every block of the surface cache's radiosity
+probes lies on one card), and every lighting texel knows its card row.
 
 Arrays (uploaded by surface_cache.py as they are, x fastest):
 - `cards`: float32 [rows, CARD_TEXELS, 4], one row per (instance, card), rows grouped by instance:
@@ -30,6 +31,7 @@ except ImportError:                    # gpu_shaders imported on its own (tests,
     from lumen_addon.cards import AXES, PLANE
 
 CARD_TEXELS = 4
+PROBE_BLOCK = 4          # texels per surface-cache probe side (surface_cache_probe_lib.glsl)
 FLOAT_EXACT = 1 << 24
 
 
@@ -59,7 +61,9 @@ def pack_cards(atlas, instance_cards) -> PackedCards:
         mine = by_mesh.get(key, [])
         inst_rows[i, 0, :2] = (len(entries), len(mine))
         entries += [(i, e) for e in mine]
-    sizes = [(e["rect"][2], e["rect"][3]) for _, e in entries]
+    # Reserve whole 4x4 blocks per card: a surface-cache probe's block then lies on one card.
+    sizes = [(-(-e["rect"][2] // PROBE_BLOCK) * PROBE_BLOCK, -(-e["rect"][3] // PROBE_BLOCK) * PROBE_BLOCK)
+             for _, e in entries]
     pos, (width, height) = pack(sizes, padding=0) if entries else (np.zeros((0, 2)), (1, 1))
     width, height = max(int(width), 1), max(int(height), 1)
     if len(entries) >= FLOAT_EXACT or width * height >= FLOAT_EXACT:

@@ -77,7 +77,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         gsdf.update(cam_pos, frame, objects_changed)
         objects_changed = False
         b = time.perf_counter()
-        cache.light_indirect(res, gsdf, sky, gi.sc_rays, frame, sc_blend, t_max)
+        cache.light_indirect(res, gsdf, sky, frame, sc_blend, t_max)
         cache.combine(res)
         c = time.perf_counter()
         if px_blend is not None:

@@ -3,7 +3,6 @@
 
 A preset sets the per-frame budgets; the scene's `bounces` and `render_frames` say how much an
 F12 render accumulates:
-    sc_rays          rays per surface-cache texel per frame (the lecture: 16 per probe of 4x4 texels)
     probe_tile       pixels per screen probe side (lecture: 16)
     probe_res        octahedral texels per probe side (lecture: 8 -> 64 rays per probe)
     gsdf_n, gsdf_voxel  global SDF clipmap texels per side and level-0 voxel (metres)
@@ -14,9 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 PRESETS = {
-    "LOW": dict(sc_rays=4, probe_tile=16, probe_res=8, gsdf_n=32, gsdf_voxel=0.2, history=8),
-    "MEDIUM": dict(sc_rays=8, probe_tile=16, probe_res=8, gsdf_n=48, gsdf_voxel=0.125, history=12),
-    "HIGH": dict(sc_rays=16, probe_tile=8, probe_res=8, gsdf_n=64, gsdf_voxel=0.1, history=16),
+    "LOW": dict(probe_tile=16, probe_res=8, gsdf_n=32, gsdf_voxel=0.2, history=8),
+    "MEDIUM": dict(probe_tile=16, probe_res=8, gsdf_n=48, gsdf_voxel=0.125, history=12),
+    "HIGH": dict(probe_tile=8, probe_res=8, gsdf_n=64, gsdf_voxel=0.1, history=16),
 }
 QUALITIES = ("OFF",) + tuple(PRESETS)
 
@@ -26,7 +25,6 @@ class GISettings:
     quality: str = "MEDIUM"        # OFF: direct light and SDF sky occlusion only
     bounces: int = 3               # surface-cache bounces an F12 render converges before gathering
     render_frames: int = 8         # F12: frames of jittered probes averaged (temporal accumulation)
-    sc_rays: int = 8
     probe_tile: int = 16
     probe_res: int = 8
     gsdf_n: int = 48

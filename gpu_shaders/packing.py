@@ -12,7 +12,9 @@ Three arrays, all uploaded as they are by `resources.py` (x fastest, C order of 
   texels 0-3 the rows of the world-to-local 4x4 matrix; 4 = (origin.xyz, voxel size);
   5 = (brick grid xyz, band); 6 = (bounds_min.xyz, indirection offset);
   7 = (bounds_max.xyz, distance scale: local distances times this are world lower bounds,
-  the smallest singular value of the local-to-world 3x3).
+  the smallest singular value of the local-to-world 3x3); 8 = (world centre of the bounds,
+  radius of a world sphere around them): sdf_scene skips an object whose sphere is farther than
+  the nearest distance found so far (its own value could not be smaller).
 
 Integers stored in float texels (grid, offsets) are exact below 2^24; packing checks that.
 """
@@ -24,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 BRICK = 8
-OBJECT_TEXELS = 8
+OBJECT_TEXELS = 9
 MAX_BRICKS_PER_AXIS = 256        # 2048 texels: the smallest 3D texture limit of GL 4.5 drivers
 INDIRECTION_WIDTH = 4096
 FLOAT_EXACT = 1 << 24
@@ -95,6 +97,11 @@ def object_row(world_to_local, origin, voxel_size, brick_grid, band, bounds_min,
     row[5] = (*brick_grid, band)
     row[6] = (*bounds_min, indirection_offset)
     row[7] = (*bounds_max, distance_scale)
+    l2w = np.linalg.inv(np.asarray(world_to_local, np.float64))
+    lo, hi = np.asarray(bounds_min, np.float64), np.asarray(bounds_max, np.float64)
+    centre = l2w[:3, :3] @ ((lo + hi) / 2) + l2w[:3, 3]
+    sigma_max = float(np.linalg.svd(l2w[:3, :3], compute_uv=False).max())
+    row[8] = (*centre, sigma_max * float(np.linalg.norm(hi - lo)) / 2 * (1 + 1e-5) + 1e-6)
     return row.astype(np.float32)
 
 

@@ -12,7 +12,9 @@ Textures (card_packing.py has the layouts):
         indirect  E_indirect, irradiance from rays into the scene, read from `final` (next file)
         final     (E_direct + E_indirect) * albedo / pi + emissive: the radiance rays read at hits
 The passes, one GLSL file each, run by this class's methods: surface_cache_direct (lights),
-surface_cache_indirect (rays through gi_trace_lib.glsl), surface_cache_combine (final), and for
+surface_cache_probe_trace / _probe_sh / _indirect (radiosity probes: 16 rays per 4x4 texels
+through gi_trace_lib.glsl, filtered, two-band SH, interpolated per texel), surface_cache_combine
+(final), and for
 the debug views surface_cache_layer / surface_cache_view. Reading last frame's `final` in the
 indirect pass is what makes light bounce again every frame (the lecture's multi-bounce).
 Needs a GPU context.
@@ -72,6 +74,7 @@ class SurfaceCache:
         self.indirect = self._make("indirect", (lw, lh), 'RGBA32F', zero)
         self.final = self._make("final", (lw, lh), 'RGBA32F', zero)
         self.frames = 0                # indirect passes accumulated since the last reset
+        self.probe_textures = {}       # the last indirect pass's probe rays, probes and SH
         self.upload_seconds = time.perf_counter() - t0
 
     def _make(self, name, size, fmt, data):
@@ -124,28 +127,57 @@ class SurfaceCache:
         sh.image("out_image", self.direct)
         self._dispatch(sh)
 
-    def light_indirect(self, resources: SceneResources, gsdf, sky, rays: int, frame: int,
-                       blend: float, t_max: float):
-        """surface_cache_indirect: E_indirect = mix(last E_indirect, this frame's rays, blend)."""
-        sh = pass_shader("surface_cache_indirect",
-                         ("global_sdf_lib.glsl", "sampling_lib.glsl", "gi_trace_lib.glsl"),
-                         ("sc_indirect_prev",),
-                         (('VEC3', 'sky'), ('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 'blend'),
-                          ('FLOAT', 't_max')), gsdf=True)
+    def light_indirect(self, resources: SceneResources, gsdf, sky, frame: int, blend: float,
+                       t_max: float):
+        """E_indirect = mix(last E_indirect, this frame's probes, blend), in three passes:
+        surface_cache_probe_trace (16 rays per probe of 4x4 texels, surface cache at hits),
+        surface_cache_probe_sh (3x3 probe filter, two-band SH), surface_cache_indirect (per
+        texel: 2x2 probes' SH irradiance at the texel's normal, temporal blend)."""
+        lw, lh = self.packed.lighting_size
+        gw, gh = -(-lw // 4), -(-lh // 4)
+        probe_libs = ("sampling_lib.glsl", "sh_lib.glsl", "surface_cache_probe_lib.glsl")
+        rays, probes = _tex((gw * 4, gh * 4), 'RGBA32F'), _tex((gw, gh), 'RGBA32F')
+        sh = pass_shader("surface_cache_probe_trace",
+                         ("global_sdf_lib.glsl",) + probe_libs + ("gi_trace_lib.glsl",), (),
+                         (('VEC3', 'sky'), ('INT', 'frame'), ('FLOAT', 't_max')),
+                         images=("probe_out",), gsdf=True)
         resources.bind(sh)
         self.bind(sh)
         gsdf.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("sc_indirect_prev", self.indirect)
         sh.uniform_float("sky", [float(c) for c in np.asarray(sky, np.float64)[:3]])
-        sh.uniform_int("rays", int(rays))
         sh.uniform_int("frame", int(frame))
-        sh.uniform_float("blend", float(blend))
         sh.uniform_float("t_max", float(t_max))
+        sh.image("out_image", rays)
+        sh.image("probe_out", probes)
+        gpu.compute.dispatch(sh, -(-gw * 4 // GROUP), -(-gh * 4 // GROUP), 1)
+
+        coeffs = _tex((gw * 2, gh * 2), 'RGBA32F')
+        sh = pass_shader("surface_cache_probe_sh", probe_libs, ("sc_rays", "sc_probes"),
+                         (('INT', 'frame'),))
+        resources.bind(sh)
+        self.bind(sh)
+        sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("sc_rays", rays)
+        sh.uniform_sampler("sc_probes", probes)
+        sh.uniform_int("frame", int(frame))
+        sh.image("out_image", coeffs)
+        gpu.compute.dispatch(sh, -(-gw // GROUP), -(-gh // GROUP), 1)
+
+        sh = pass_shader("surface_cache_indirect", probe_libs,
+                         ("sc_probes", "sc_probe_sh", "sc_indirect_prev"), (('FLOAT', 'blend'),))
+        resources.bind(sh)
+        self.bind(sh)
+        sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("sc_probes", probes)
+        sh.uniform_sampler("sc_probe_sh", coeffs)
+        sh.uniform_sampler("sc_indirect_prev", self.indirect)
+        sh.uniform_float("blend", float(blend))
         out = _tex(self.packed.lighting_size, 'RGBA32F')
         sh.image("out_image", out)
         self._dispatch(sh)
         self.indirect = out
+        self.probe_textures = {"rays": rays, "probes": probes, "sh": coeffs}
         self.frames += 1
 
     def combine(self, resources: SceneResources):
@@ -217,7 +249,7 @@ class SurfaceCache:
 def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False):
     """A compute shader over the lighting atlas (GROUP x GROUP): the SDF and surface-cache
     samplers, `texel_card`, an RGBA32F `out_image`, extra 2D `samplers`, `push` constants
-    ((type, name)) and `images` ((name, qualifiers)), with gsdf the global SDF's samplers and
+    ((type, name)) and more write-only RGBA32F `images`, with gsdf the global SDF's samplers and
     constants, then sdf_lib, surface_cache_lib, `libs` and glsl/<name>.comp.glsl."""
     if name not in _SHADERS:
         info = gpu.types.GPUShaderCreateInfo()
@@ -230,8 +262,8 @@ def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False)
             from .global_sdf import GlobalSDF
             slot = GlobalSDF.declare(info, slot)
         info.image(0, 'RGBA32F', 'FLOAT_2D', 'out_image', qualifiers={'WRITE'})
-        for k, (image, quals) in enumerate(images, start=1):
-            info.image(k, 'RGBA32F', 'FLOAT_2D', image, qualifiers=set(quals))
+        for k, image in enumerate(images, start=1):
+            info.image(k, 'RGBA32F', 'FLOAT_2D', image, qualifiers={'WRITE'})
         for kind, pname in push:
             info.push_constant(kind, pname)
         src = [glsl("sdf_lib.glsl"), glsl("surface_cache_lib.glsl")] + [glsl(n) for n in libs]

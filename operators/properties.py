@@ -74,9 +74,9 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
     gi_quality: EnumProperty(
         name="GI Quality", description="Budgets of the global illumination passes",
         items=(('OFF', "Off", "Direct light and SDF sky occlusion only"),
-               ('LOW', "Low", "4 rays per card texel, a 16 px probe grid, coarse global SDF"),
-               ('MEDIUM', "Medium", "8 rays per card texel, a 16 px probe grid"),
-               ('HIGH', "High", "16 rays per card texel, an 8 px probe grid, 64^3 clipmaps")),
+               ('LOW', "Low", "A 16 px screen-probe grid, 32^3 global SDF clipmaps"),
+               ('MEDIUM', "Medium", "A 16 px screen-probe grid, 48^3 clipmaps"),
+               ('HIGH', "High", "An 8 px screen-probe grid, 64^3 clipmaps")),
         default='MEDIUM')
     bounces: IntProperty(
         name="Bounces", description="Surface-cache bounces an F12 render converges before it "

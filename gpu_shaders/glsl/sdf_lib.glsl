@@ -10,7 +10,7 @@
 #define SDF_BRICK 8
 #define SDF_BRICK_CELLS 7
 #define SDF_INVALID_INSIDE -2
-#define SDF_OBJECT_TEXELS 8
+#define SDF_OBJECT_TEXELS 9
 
 int sdf_object_count()
 {
@@ -108,7 +108,8 @@ float sdf_object_world(int obj, vec3 pw, out float voxel_world)
 }
 
 /* Scene distance: minimum over objects. voxel_world: voxel of the nearest object; nearest: its
- * index (-1 with no objects, distance 1e30). */
+ * index (-1 with no objects, distance 1e30). An object whose bounding sphere (texel 8) is
+ * farther than the best distance so far is skipped: its value is at least that far. */
 float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
 {
   float best = 1e30;
@@ -116,6 +117,10 @@ float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
   nearest = -1;
   int n = sdf_object_count();
   for (int i = 0; i < n; i++) {
+    vec4 sphere = sdf_object_texel(i, 8);
+    if (length(pw - sphere.xyz) - sphere.w >= best) {
+      continue;
+    }
     float h;
     float d = sdf_object_world(i, pw, h);
     if (d < best) {

@@ -1,14 +1,10 @@
-/* Surface cache indirect light: per lighting-atlas texel, `rays` cosine-distributed rays (a
- * Hammersley set rotated per texel and frame) through gi_trace; each returns the surface cache's
- * final light at its hit (last frame's: light bounces once more every frame) or the sky.
- * E_new = pi * mean(L); accumulated as E = mix(E_prev, E_new, blend).
- * Rays start one voxel of the texel's object off the surface, along its normal.
- * Inputs: texel_card, card tables and layers, sc_final (last frame), sc_indirect_prev; push
- * constants sky, rays, frame, blend, t_max. Output out_image: E.rgb, w = share of rays whose hit
- * no card saw (their light is lost: a coverage diagnostic).
+/* Surface cache indirect light, step 3: per lighting-atlas texel, the irradiance of the 2x2 probes
+ * around it (bilinear between probe centres, probes on the same card only; its own block's probe
+ * when none), E = sh4_irradiance(c, n) at the texel's own normal, then the temporal blend
+ * E = mix(E_prev, E_new, blend). Multi-bounce: the probes read last frame's final light.
+ * Inputs: texel_card, card tables and layers, sc_probes, sc_probe_sh, sc_indirect_prev; blend.
+ * Output out_image: E.rgb (irradiance, W/m^2), w = 1 on surface texels.
  */
-#define PI 3.14159265358979
-
 void main()
 {
   ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -17,28 +13,36 @@ void main()
     return;
   }
   int row = int(texelFetch(texel_card, px, 0).x);
+  vec3 p, n;
+  int obj;
   vec3 pl, nl, albedo, emissive;
   if (row < 0 || !sc_texel_surface(row, px - ivec2(sc_card(row, 0).zw + 0.5), pl, nl, albedo, emissive)) {
     imageStore(out_image, px, vec4(0.0));
     return;
   }
-  int obj = int(sc_card(row, 0).x + 0.5);
-  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
-                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
-  vec3 p = (inverse(w2l) * vec4(pl, 1.0)).xyz;
-  vec3 n = normalize(transpose(mat3(w2l)) * nl);
-  vec3 o = p + n * gi_object_voxel(obj);
-  uint seed = pcg_hash(uint(px.x) + 4099u * uint(px.y)) ^ pcg_hash(uint(frame) + 0x68bc21ebu);
-  vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
-  vec3 sum = vec3(0.0);
-  float lost = 0.0;
-  for (int i = 0; i < rays; i++) {
-    vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(rays)) + rot), n);
-    float t, w;
-    sum += gi_radiance(o, dir, t_max, sky, t, w);
-    lost += w > 0.0 ? 0.0 : 1.0;
+  scp_surface(px, row, p, n, obj);
+  ivec2 grid = textureSize(sc_probes, 0);
+  vec2 g = (vec2(px) + 0.5) / float(SCP_SIZE) - 0.5;
+  ivec2 i0 = ivec2(floor(g));
+  vec2 f = g - vec2(i0);
+  vec3 E = vec3(0.0);
+  float wsum = 0.0;
+  for (int k = 0; k < 4; k++) {
+    ivec2 d = ivec2(k & 1, k >> 1);
+    ivec2 q = clamp(i0 + d, ivec2(0), grid - 1);
+    vec4 qi = texelFetch(sc_probes, q, 0);
+    if (abs(qi.w - float(row + 1)) > 0.5) {
+      continue;
+    }
+    float w = (d.x == 1 ? f.x : 1.0 - f.x) * (d.y == 1 ? f.y : 1.0 - f.y) + 1e-3;
+    vec3 c[4];
+    for (int i = 0; i < 4; i++) {
+      c[i] = texelFetch(sc_probe_sh, q * 2 + ivec2(i & 1, i >> 1), 0).rgb;
+    }
+    E += w * max(sh4_irradiance(c, n), vec3(0.0));
+    wsum += w;
   }
-  vec3 E = PI * sum / float(rays);
   vec3 prev = texelFetch(sc_indirect_prev, px, 0).rgb;
-  imageStore(out_image, px, vec4(mix(prev, E, blend), lost / float(rays)));
+  vec3 e = wsum > 0.0 ? E / wsum : prev;
+  imageStore(out_image, px, vec4(mix(prev, e, blend), 1.0));
 }

@@ -25,6 +25,7 @@ def test_demo_bakes_exports_and_renders(tmp_path):
     img.close()
     assert pixels.shape[:2] == (48, 64)
     # A lit scene, not a blank or constant image: the red box shows, shadows are darker than floor.
-    red = (pixels[..., 0] > 0.3) & (pixels[..., 1] < 0.15) & (pixels[..., 2] < 0.15)
+    # (GI lights the box with bounced floor colours and sky: red by ratio, not absolute levels)
+    red = (pixels[..., 0] > 0.3) & (pixels[..., 0] > 2.0 * np.maximum(pixels[..., 1], pixels[..., 2]))
     assert red.sum() > 10
     assert np.ptp(pixels[..., :3].mean(axis=2)) > 0.3

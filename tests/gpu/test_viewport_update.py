@@ -116,7 +116,7 @@ def test_moves_reupload_only_what_changed(tmp_path):
     assert all(v["changes"] == [] and v["view"] == k for k, v in views.items())  # views share state
     assert views["STEPS"]["max_steps"] > 0 and views["NORMAL"]["max_steps"] is None
     mem = run.result["memory"]
-    assert mem["atlas"] > 0 and mem["objects"] == 4 * 8 * 16   # 4 instances x 8 RGBA32F texels
+    assert mem["atlas"] > 0 and mem["objects"] == 4 * 9 * 16   # 4 instances x 9 RGBA32F texels
 
     img = np.load(tmp_path / "images.npz")
     np.testing.assert_array_equal(img["first"], img["again"])

@@ -1,0 +1,62 @@
+/* Lumen GI: surface-cache radiosity probes (lecture: "Indirect Lighting": 2x2 probes per 8x8 tile,
+ * each probe covering 4x4 texels, 16 rays, jittered placement and directions).
+ * Needs sdf_lib.glsl, surface_cache_lib.glsl, sampling_lib.glsl; texel_card.
+ * card_packing.py aligns every card of the lighting atlas to 4 texels, so a probe's 4x4 block
+ * belongs to one card (or none). A probe sits on one texel of its block: the frame's jittered
+ * texel, else the next valid one in scan order; its rays are a 16-point Hammersley set over the
+ * hemisphere of its normal (uniform: pdf 1 / (2 pi), so every ray has the same SH weight),
+ * rotated per probe and frame.
+ */
+#define SCP_SIZE 4
+#define SCP_RAYS 16
+
+uint scp_seed(ivec2 probe, int frame)
+{
+  return pcg_hash(uint(probe.x) + 8191u * uint(probe.y)) ^ pcg_hash(uint(frame) * 0x9e3779b9u + 17u);
+}
+
+/* The probe's texel; false when its block holds no surface. row: the texel's card row. */
+bool scp_texel(ivec2 probe, int frame, out ivec2 texel, out int row)
+{
+  int start = int(scp_seed(probe, frame) & 15u);
+  for (int i = 0; i < SCP_RAYS; i++) {
+    int k = (start + i) & 15;
+    texel = probe * SCP_SIZE + ivec2(k & 3, k >> 2);
+    row = int(texelFetch(texel_card, texel, 0).x);
+    if (row < 0) {
+      continue;
+    }
+    vec4 t1 = sc_card(row, 1);
+    ivec2 ij = texel - ivec2(sc_card(row, 0).zw + 0.5);
+    if (texelFetch(sc_albedo, ivec2(t1.xy + 0.5) + ij, 0).a > 0.5) {
+      return true;
+    }
+  }
+  row = -1;
+  return false;
+}
+
+/* World position and normal of lighting texel `texel` on card row `row`. */
+void scp_surface(ivec2 texel, int row, out vec3 p, out vec3 n, out int obj)
+{
+  vec3 pl, nl, albedo, emissive;
+  vec4 t0 = sc_card(row, 0);
+  sc_texel_surface(row, texel - ivec2(t0.zw + 0.5), pl, nl, albedo, emissive);
+  obj = int(t0.x + 0.5);
+  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
+                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
+  p = (inverse(w2l) * vec4(pl, 1.0)).xyz;
+  n = normalize(transpose(mat3(w2l)) * nl);
+}
+
+/* Ray k of a probe with normal n: uniform over the hemisphere, stratified. */
+vec3 scp_dir(ivec2 probe, int frame, int k, vec3 n)
+{
+  uint s = scp_seed(probe, frame) * 747796405u + 1u;
+  vec2 rot = vec2(float(s & 0xffffu), float(s >> 16u)) / 65536.0;
+  vec2 u = fract(hammersley(uint(k), uint(SCP_RAYS)) + rot);
+  float z = u.x;
+  float r = sqrt(max(0.0, 1.0 - z * z));
+  float phi = 6.28318530717958648 * u.y;
+  return tangent_frame(n) * vec3(r * cos(phi), r * sin(phi), z);
+}

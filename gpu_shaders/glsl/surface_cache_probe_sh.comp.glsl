@@ -1,0 +1,48 @@
+/* Surface cache indirect light, step 2: spatial filter + two-band SH (lecture: "Spatial filtering
+ * between probes, convert to TwoBandSH"). Per probe, the rays of the 3x3 neighbouring probes on
+ * the same card whose normals agree (cos > 0.9) are projected together:
+ *   c_k = sum_rays L Y_k(dir) (2 pi / 16) / (probes used)
+ * (uniform hemisphere rays: each ray stands for 2 pi / 16 sr; the other hemisphere is empty).
+ * Inputs: sc_rays, sc_probes (trace outputs); frame.
+ * Output out_image: SH coefficient k of probe (i, j) at texel (2 i + k % 2, 2 j + k / 2), rgb.
+ */
+void main()
+{
+  ivec2 probe = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 grid = textureSize(sc_probes, 0);
+  if (probe.x >= grid.x || probe.y >= grid.y) {
+    return;
+  }
+  vec4 own = texelFetch(sc_probes, probe, 0);
+  vec3 c[4] = vec3[4](vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
+  if (own.w > 0.5) {
+    float used = 0.0;
+    for (int dy = -1; dy <= 1; dy++) {
+      for (int dx = -1; dx <= 1; dx++) {
+        ivec2 q = probe + ivec2(dx, dy);
+        if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, grid))) {
+          continue;
+        }
+        vec4 qi = texelFetch(sc_probes, q, 0);
+        if (abs(qi.w - own.w) > 0.5 || dot(qi.xyz, own.xyz) < 0.9) {
+          continue;
+        }
+        for (int k = 0; k < SCP_RAYS; k++) {
+          vec3 L = texelFetch(sc_rays, q * SCP_SIZE + ivec2(k & 3, k >> 2), 0).rgb;
+          float b[4];
+          sh4_basis(scp_dir(q, frame, k, qi.xyz), b);
+          for (int i = 0; i < 4; i++) {
+            c[i] += L * b[i];
+          }
+        }
+        used += 1.0;
+      }
+    }
+    for (int i = 0; i < 4; i++) {
+      c[i] *= 6.28318530717958648 / (float(SCP_RAYS) * used);
+    }
+  }
+  for (int i = 0; i < 4; i++) {
+    imageStore(out_image, probe * 2 + ivec2(i & 1, i >> 1), vec4(c[i], 1.0));
+  }
+}

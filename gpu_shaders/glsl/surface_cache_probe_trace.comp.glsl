@@ -1,0 +1,38 @@
+/* Surface cache indirect light, step 1: trace. One invocation per probe ray: texel (x, y) of the
+ * ray atlas is ray (x % 4) + 4 (y % 4) of probe (x / 4, y / 4) (surface_cache_probe_lib.glsl).
+ * Each ray goes through gi_trace_lib.glsl from one voxel off the probe's surface and returns the
+ * surface cache's final light at its hit (last frame's: one more bounce) or the sky.
+ * Inputs: texel_card, card tables and layers, sc_final; sky, frame, t_max.
+ * Outputs: out_image (rays): radiance rgb, a = 1 (0: no probe); probe_out (one texel per probe,
+ * written by ray 0): world normal xyz, w = card row + 1 (0: no probe).
+ */
+void main()
+{
+  ivec2 tx = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(out_image);
+  if (tx.x >= size.x || tx.y >= size.y) {
+    return;
+  }
+  ivec2 probe = tx / SCP_SIZE;
+  ivec2 local = tx - probe * SCP_SIZE;
+  int k = local.x + SCP_SIZE * local.y;
+  ivec2 texel;
+  int row;
+  if (!scp_texel(probe, frame, texel, row)) {
+    imageStore(out_image, tx, vec4(0.0));
+    if (k == 0) {
+      imageStore(probe_out, probe, vec4(0.0));
+    }
+    return;
+  }
+  vec3 p, n;
+  int obj;
+  scp_surface(texel, row, p, n, obj);
+  if (k == 0) {
+    imageStore(probe_out, probe, vec4(n, float(row + 1)));
+  }
+  vec3 dir = scp_dir(probe, frame, k, n);
+  float t, w;
+  vec3 L = gi_radiance(p + n * gi_object_voxel(obj), dir, t_max, sky, t, w);
+  imageStore(out_image, tx, vec4(L, w > 0.0 ? 1.0 : 0.5));
+}
