@@ -19,6 +19,7 @@ from .resources import SceneResources, float_buffer, glsl
 
 GROUP = 8
 SKY_CONES = 8
+LIGHT_SAMPLES = 8          # points per light with a radius (light_lib.glsl: soft shadows)
 _SHADER = {}
 
 
@@ -36,6 +37,7 @@ def direct_shader():
         info.push_constant('VEC3', 'sky')
         info.push_constant('VEC3', 'cam_pos')
         info.push_constant('INT', 'light_count')
+        info.push_constant('INT', 'light_samples')
         info.push_constant('INT', 'sky_cones')
         info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("light_lib.glsl") + "\n"
                             + glsl("direct_light.comp.glsl"))
@@ -44,7 +46,8 @@ def direct_shader():
 
 
 def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky, cam_pos,
-          width: int, height: int, sky_cones: int = SKY_CONES, light_texture=None) -> dict:
+          width: int, height: int, sky_cones: int = SKY_CONES, light_texture=None,
+          light_samples: int = LIGHT_SAMPLES) -> dict:
     """Run the pass; returns {'direct': float32 [h, w, 4], 'combined': [h, w, 4], timings}.
     `light_texture`: the rows already on the GPU (SceneState.light_texture), else made here.
     sky_cones = 0 leaves the sky light out (the GI passes bring it)."""
@@ -68,6 +71,7 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky, cam_po
     shader.uniform_float("sky", [float(c) for c in np.asarray(sky, np.float64)[:3]])
     shader.uniform_float("cam_pos", [float(c) for c in np.asarray(cam_pos, np.float64)[:3]])
     shader.uniform_int("light_count", count)
+    shader.uniform_int("light_samples", int(light_samples))
     shader.uniform_int("sky_cones", int(sky_cones))
     gpu.compute.dispatch(shader, -(-width // GROUP), -(-height // GROUP), 1)
     out = {"direct": read_texture(direct, width, height),

@@ -175,6 +175,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         LAST_RENDER.update(out, inv_view_proj=inv_vp, t_max=clip_end)
         MEMORY[scene.name] = state.stats()
         LAST_RENDER["gpu_bytes"] = MEMORY[scene.name]
+        LAST_RENDER["shown"] = img
         return {"Combined": img}
     gi_cfg = gi_settings.from_scene(scene.lumen)
     sky, sky_notes = world_colour(scene)
@@ -212,6 +213,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, **gi_info)
     shown = _debug_image(view, state, gbuf, cam_pos, width, height, combined, out["direct"],
                          indirect, gi_cfg)
+    LAST_RENDER["shown"] = shown
     return {"Combined": shown, "Diffuse Direct": out["direct"], "Diffuse Indirect": indirect,
             "Diffuse Color": gbuf["albedo"], "Normal": gbuf["normal"]}
 

@@ -85,8 +85,8 @@ def scene_triangles(objects):
     groups = {}
     for ob in objects:
         tris = np.asarray(ob.triangles, np.int64)
-        if not len(tris):
-            continue
+        if not len(tris) or not getattr(ob, "camera_visible", True):
+            continue          # invisible to the camera: in the SDF and cards, not in the image
         m = np.asarray(ob.matrix_world, np.float64)
         v = np.asarray(ob.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
         p = v[tris].reshape(-1, 3)

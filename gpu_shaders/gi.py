@@ -81,7 +81,12 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         cache.combine(res)
         c = time.perf_counter()
         if px_blend is not None:
-            new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max)
+            if gi.gather == "PIXEL":
+                from .screen_probes import pixel_gather
+                new = pixel_gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max,
+                                   gi.pixel_rays, width, height)
+            else:
+                new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max)
             result = probes.temporal(new, px_blend)
         timings["gsdf"] += b - a
         timings["sc_indirect"] += c - b

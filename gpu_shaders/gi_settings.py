@@ -30,6 +30,8 @@ class GISettings:
     gsdf_n: int = 48
     gsdf_voxel: float = 0.125
     history: int = 12
+    gather: str = "PROBES"         # PROBES (screen probes) or PIXEL (reference: rays per pixel)
+    pixel_rays: int = 64           # PIXEL: cosine rays per pixel per frame
 
     @property
     def enabled(self) -> bool:
@@ -54,4 +56,5 @@ def from_scene(scene_settings) -> GISettings:
     """GISettings from a scene's `lumen` property group (or anything with those attributes)."""
     q = getattr(scene_settings, "gi_quality", "MEDIUM")
     return settings(q, bounces=int(getattr(scene_settings, "bounces", 3)),
-                    render_frames=int(getattr(scene_settings, "render_frames", 8)))
+                    render_frames=int(getattr(scene_settings, "render_frames", 8)),
+                    gather=str(getattr(scene_settings, "gi_gather", "PROBES")))

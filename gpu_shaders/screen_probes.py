@@ -140,3 +140,28 @@ class ScreenProbes:
         if self.history is not None:
             out["probes_history"] = self.width * self.height * 16
         return out
+
+
+def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
+                 rays: int, width: int, height: int):
+    """Reference gather (glsl/pixel_gather.comp.glsl): `rays` cosine rays per pixel through the
+    same tracer and surface cache as the probes. RGBA32F texture of E."""
+    g = gbuf["textures"]
+    out = compute.texture((width, height))
+    sh = compute.shader("pixel_gather", samplers=("gbuf_position", "gbuf_normal"),
+                        push=(('VEC3', 'cam_pos'), ('VEC3', 'sky'), ('INT', 'rays'),
+                              ('INT', 'frame'), ('FLOAT', 't_max')),
+                        libs=GI_LIBS, scene=True, surface_cache=True, global_sdf=True)
+    resources.bind(sh)
+    cache.bind(sh)
+    gsdf.bind(sh)
+    sh.uniform_sampler("gbuf_position", g["position"])
+    sh.uniform_sampler("gbuf_normal", g["normal"])
+    sh.uniform_float("cam_pos", compute.vec(cam_pos))
+    sh.uniform_float("sky", compute.vec(sky))
+    sh.uniform_int("rays", int(rays))
+    sh.uniform_int("frame", int(frame))
+    sh.uniform_float("t_max", float(t_max))
+    sh.image("out_image", out)
+    compute.dispatch(sh, width, height)
+    return out

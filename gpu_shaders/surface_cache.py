@@ -115,15 +115,17 @@ class SurfaceCache:
         return {"cards_" + k: n * self.BYTES[fmt] for k, (n, fmt) in self._alloc.items()}
 
     # --- passes --------------------------------------------------------------------------------
-    def light_direct(self, resources: SceneResources, light_tex, light_count: int):
+    def light_direct(self, resources: SceneResources, light_tex, light_count: int,
+                     light_samples: int = 8):
         """surface_cache_direct: E_direct of every lighting texel."""
         sh = pass_shader("surface_cache_direct", ("light_lib.glsl",), ("lights",),
-                         (('INT', 'light_count'),))
+                         (('INT', 'light_count'), ('INT', 'light_samples')))
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
         sh.uniform_sampler("lights", light_tex)
         sh.uniform_int("light_count", int(light_count))
+        sh.uniform_int("light_samples", int(light_samples))
         sh.image("out_image", self.direct)
         self._dispatch(sh)
 
@@ -153,8 +155,9 @@ class SurfaceCache:
         gpu.compute.dispatch(sh, -(-gw * 4 // GROUP), -(-gh * 4 // GROUP), 1)
 
         coeffs = _tex((gw * 2, gh * 2), 'RGBA32F')
+        irradiance = _tex((gw, gh), 'RGBA32F')
         sh = pass_shader("surface_cache_probe_sh", probe_libs, ("sc_rays", "sc_probes"),
-                         (('INT', 'frame'),))
+                         (('INT', 'frame'),), images=("irradiance_out",))
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
@@ -162,22 +165,26 @@ class SurfaceCache:
         sh.uniform_sampler("sc_probes", probes)
         sh.uniform_int("frame", int(frame))
         sh.image("out_image", coeffs)
+        sh.image("irradiance_out", irradiance)
         gpu.compute.dispatch(sh, -(-gw // GROUP), -(-gh // GROUP), 1)
 
         sh = pass_shader("surface_cache_indirect", probe_libs,
-                         ("sc_probes", "sc_probe_sh", "sc_indirect_prev"), (('FLOAT', 'blend'),))
+                         ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_indirect_prev"),
+                         (('FLOAT', 'blend'),))
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
         sh.uniform_sampler("sc_probes", probes)
         sh.uniform_sampler("sc_probe_sh", coeffs)
+        sh.uniform_sampler("sc_probe_irradiance", irradiance)
         sh.uniform_sampler("sc_indirect_prev", self.indirect)
         sh.uniform_float("blend", float(blend))
         out = _tex(self.packed.lighting_size, 'RGBA32F')
         sh.image("out_image", out)
         self._dispatch(sh)
         self.indirect = out
-        self.probe_textures = {"rays": rays, "probes": probes, "sh": coeffs}
+        self.probe_textures = {"rays": rays, "probes": probes, "sh": coeffs,
+                               "irradiance": irradiance}
         self.frames += 1
 
     def combine(self, resources: SceneResources):

@@ -48,6 +48,9 @@ class ObjectInput:
     uvs: Optional[np.ndarray] = None           # (T, 3, 2) per-corner UVs of the texture UV map
     material_ids: Optional[np.ndarray] = None  # (T,) index into `materials`
     materials: list = field(default_factory=list)   # [materials.Material]; empty: plain grey
+    # Seen by camera rays (Blender's Object > Visibility > Camera): the preview's G-buffer skips
+    # it, its SDF and cards still block and bounce light. Not part of any bake hash.
+    camera_visible: bool = True
 
 
 @dataclass

@@ -447,7 +447,8 @@ def extract_scene(depsgraph, view_layer=None):
             two_sided=bool(props.two_sided) if props is not None else False,
             resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
             normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
-            materials=data.materials))
+            materials=data.materials,
+            camera_visible=bool(getattr(source, "visible_camera", True))))
     return out, ex.warnings()
 
 

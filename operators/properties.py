@@ -78,6 +78,12 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                ('MEDIUM', "Medium", "A 16 px screen-probe grid, 48^3 clipmaps"),
                ('HIGH', "High", "An 8 px screen-probe grid, 64^3 clipmaps")),
         default='MEDIUM')
+    gi_gather: EnumProperty(
+        name="Final Gather", description="How pixels gather indirect light",
+        items=(('PROBES', "Screen Probes", "Lumen's screen probes: few rays, filtered, SH"),
+               ('PIXEL', "Per Pixel (Reference)", "64 rays per pixel per frame through the same "
+                "tracer and surface cache: slow, a check of the probes")),
+        default='PROBES')
     bounces: IntProperty(
         name="Bounces", description="Surface-cache bounces an F12 render converges before it "
         "gathers (the viewport keeps bouncing every frame)", default=3, min=1, max=16)

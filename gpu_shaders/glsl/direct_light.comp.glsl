@@ -30,7 +30,7 @@ void main()
   }
   vec3 E = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
-    E += light_irradiance(i, p, n);
+    E += light_irradiance(i, p, n, light_samples, light_rotation(px));
   }
   if (sky_cones > 0 && any(greaterThan(sky, vec3(0.0)))) {
     E += PI * sky * sky_visibility(p, n, sky_cones);

@@ -2,8 +2,10 @@
  * sky visibility (needs sdf_lib.glsl). Shared by the per-pixel direct pass and the surface cache.
  *
  * Inputs: sampler2D lights (RGBA32F, 4 texels per light row, operators/lights.py).
- * Shadows: SDF cone tracing, visibility = min over steps of k * d / t (k from the light's
- * angular size, clamped to [2, 16]), started OFFSET_VOXELS = 1 voxel off the surface along its
+ * Shadows: SDF cone tracing, visibility = min over steps of k * (d - 0.5 voxel) / t (k from the
+ * light's angular size, 1 / tan(half angle), clamped to [2, 256]: Blender's default sun is 215,
+ * a clamp at 16 spread its penumbra over 20 cm at 3 m and halved a window's sun patch; the half
+ * voxel is the thin-wall rule: a wall thinner than a voxel never reaches d = 0), started OFFSET_VOXELS = 1 voxel off the surface along its
  * normal (2 voxels let light leak onto the floor along a box's shadowed base: Cycles relMSE 0.095
  * for the sun in tests/gpu/test_direct_light.py, 0.011 with 1), then smoothstep.
  * Sky: `cones` fixed cosine-distributed directions around the normal, each a wide cone (k = 2)
@@ -12,6 +14,7 @@
 #define PI 3.14159265358979
 #define SHADOW_STEPS 96
 #define OFFSET_VOXELS 1.0
+#define THIN_VOXELS 0.5   /* occluders count half a voxel thicker: walls thinner than a voxel block */
 
 vec4 light_texel(int i, int t)
 {
@@ -29,7 +32,7 @@ float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
   for (int i = 0; i < SHADOW_STEPS; i++) {
     float hv;
     float d = sdf_scene(o + dir * t, hv, nearest);
-    vis = min(vis, k * d / t);
+    vis = min(vis, k * (d - THIN_VOXELS * hv) / t);
     if (vis <= 0.0) {
       return 0.0;
     }
@@ -42,48 +45,83 @@ float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
   return vis * vis * (3.0 - 2.0 * vis);
 }
 
-/* Irradiance E (W/m^2, rgb) at p with normal n from light i, shadowed. */
-vec3 light_irradiance(int i, vec3 p, vec3 n)
+/* A per-pixel rotation in [0,1)^2 for the light samples (integer hash of the pixel). */
+vec2 light_rotation(ivec2 px)
+{
+  uint h = uint(px.x) * 1973u + uint(px.y) * 9277u + 26699u;
+  h = (h ^ (h >> 16u)) * 0x7feb352du;
+  h = (h ^ (h >> 15u)) * 0x846ca68bu;
+  h ^= h >> 16u;
+  return vec2(float(h & 0xffffu), float(h >> 16u)) / 65536.0;
+}
+
+/* Irradiance E (W/m^2, rgb) at p with normal n from light i, shadowed.
+ * Sun: one cone as wide as the sun's disk. Point, spot and area lights with a radius: `samples`
+ * stratified points on a disk of that radius (facing p for point and spot lights, which are
+ * spheres in Cycles; the area light's own plane), rotated by rot; each point gets a cone as wide
+ * as its share of the light (k = distance / (radius / sqrt(samples))), and their mean is the
+ * soft shadow: a penumbra that grows from the shadow edge both ways, as a path tracer's does,
+ * where one cone over the whole light darkens from the edge outwards only. */
+vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
 {
   vec4 t0 = light_texel(i, 0);
   vec4 t1 = light_texel(i, 1);
   vec4 t2 = light_texel(i, 2);
   vec4 t3 = light_texel(i, 3);
   int type = int(t0.x + 0.5);
-  vec3 L;
-  float dist;
-  vec3 E;
-  float k;
   if (type == 0) {
-    L = -t1.xyz;
-    dist = 100.0;
-    E = t2.rgb;
-    k = 1.0 / max(tan(0.5 * t1.w), 1e-3);
+    vec3 L = -t1.xyz;
+    float cos_s = dot(n, L);
+    if (cos_s <= 0.0) {
+      return vec3(0.0);
+    }
+    float k = clamp(1.0 / max(tan(0.5 * t1.w), 1e-3), 2.0, 256.0);
+    return t2.rgb * cos_s * cone_visibility(p, n, L, 100.0, k);
   }
-  else {
-    vec3 to = t0.yzw - p;
-    dist = length(to);
-    L = to / max(dist, 1e-6);
-    E = t2.rgb / max(dist * dist, 1e-8);
+  vec3 centre = t0.yzw;
+  float r = t1.w;
+  float dist_c = length(centre - p);
+  int count = r > 0.005 ? max(samples, 1) : 1;
+  vec3 axis = type == 3 ? t1.xyz : (centre - p) / max(dist_c, 1e-6);
+  vec3 a = abs(axis.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+  vec3 bu = normalize(cross(axis, a));
+  vec3 bv = cross(axis, bu);
+  float sub = r / sqrt(float(count));            /* radius of each sample's share of the light */
+  vec3 sum = vec3(0.0);
+  for (int s = 0; s < count; s++) {
+    vec2 u = fract(vec2((float(s) + 0.5) / float(count), float(s) * 0.618033988749895) + rot);
+    float rr = count > 1 ? r * sqrt(u.x) : 0.0;
+    float phi = 6.28318530717958648 * u.y;
+    vec3 q = centre + rr * (cos(phi) * bu + sin(phi) * bv);
+    vec3 to = q - p;
+    float dist = length(to);
+    vec3 L = to / max(dist, 1e-6);
+    float cos_s = dot(n, L);
+    if (cos_s <= 0.0) {
+      continue;
+    }
+    vec3 E = t2.rgb / max(dist * dist, 1e-8);
     float cos_l = dot(-L, t1.xyz);
     if (type == 2) {
       float cos_half = t3.x;
       float smooth_w = t3.y * (1.0 - cos_half);
-      float s = smooth_w > 0.0 ? clamp((cos_l - cos_half) / smooth_w, 0.0, 1.0) :
+      float m = smooth_w > 0.0 ? clamp((cos_l - cos_half) / smooth_w, 0.0, 1.0) :
                                  (cos_l > cos_half ? 1.0 : 0.0);
-      E *= s * s * (3.0 - 2.0 * s);
+      E *= m * m * (3.0 - 2.0 * m);
     }
     else if (type == 3) {
       E *= max(cos_l, 0.0);
     }
-    k = dist / max(t1.w, 1e-3);
+    if (all(equal(E, vec3(0.0)))) {
+      continue;
+    }
+    /* the cone stops where the light begins: what is right behind it (the ceiling an area
+     * light hangs under) casts nothing */
+    float reach = max(dist - sub, 0.5 * dist);
+    float k = clamp(dist / max(sub, 1e-3), 2.0, 256.0);
+    sum += E * cos_s * cone_visibility(p, n, L, reach, k);
   }
-  float cos_s = dot(n, L);
-  if (cos_s <= 0.0 || all(equal(E, vec3(0.0)))) {
-    return vec3(0.0);
-  }
-  k = clamp(k, 2.0, 16.0);
-  return E * cos_s * cone_visibility(p, n, L, dist, k);
+  return sum / float(count);
 }
 
 float sky_visibility(vec3 p, vec3 n, int cones)

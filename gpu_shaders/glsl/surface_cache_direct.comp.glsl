@@ -31,7 +31,7 @@ void main()
   vec3 n = normalize(transpose(mat3(w2l)) * nl);
   vec3 E = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
-    E += light_irradiance(i, p, n);
+    E += light_irradiance(i, p, n, light_samples, light_rotation(px));
   }
   imageStore(out_image, px, vec4(E, 1.0));
 }

@@ -1,8 +1,10 @@
 /* Surface cache indirect light, step 3: per lighting-atlas texel, the irradiance of the 2x2 probes
  * around it (bilinear between probe centres, probes on the same card only; its own block's probe
- * when none), E = sh4_irradiance(c, n) at the texel's own normal, then the temporal blend
+ * when none), E = E0 + sh4_irradiance(c, n) - sh4_irradiance(c, n_probe): the probe's exact
+ * irradiance, corrected by the SH for the texel's own normal; then the temporal blend
  * E = mix(E_prev, E_new, blend). Multi-bounce: the probes read last frame's final light.
- * Inputs: texel_card, card tables and layers, sc_probes, sc_probe_sh, sc_indirect_prev; blend.
+ * Inputs: texel_card, card tables and layers, sc_probes, sc_probe_sh, sc_probe_irradiance,
+ * sc_indirect_prev; blend.
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 on surface texels.
  */
 void main()
@@ -39,7 +41,8 @@ void main()
     for (int i = 0; i < 4; i++) {
       c[i] = texelFetch(sc_probe_sh, q * 2 + ivec2(i & 1, i >> 1), 0).rgb;
     }
-    E += w * max(sh4_irradiance(c, n), vec3(0.0));
+    vec3 e0 = texelFetch(sc_probe_irradiance, q, 0).rgb;
+    E += w * max(e0 + sh4_irradiance(c, n) - sh4_irradiance(c, qi.xyz), vec3(0.0));
     wsum += w;
   }
   vec3 prev = texelFetch(sc_indirect_prev, px, 0).rgb;

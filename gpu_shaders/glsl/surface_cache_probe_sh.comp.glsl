@@ -3,8 +3,13 @@
  * the same card whose normals agree (cos > 0.9) are projected together:
  *   c_k = sum_rays L Y_k(dir) (2 pi / 16) / (probes used)
  * (uniform hemisphere rays: each ray stands for 2 pi / 16 sr; the other hemisphere is empty).
+ * Also the irradiance at the probe's own normal from the same rays, E0 = sum L max(0, n.dir)
+ * (2 pi / 16) / (probes used): exact where two-band SH is not (a small bright source near the
+ * normal reads 25% low through SH4's clamped-cosine convolution); the texels use E0 and take from
+ * the SH only how their normal differs from the probe's.
  * Inputs: sc_rays, sc_probes (trace outputs); frame.
- * Output out_image: SH coefficient k of probe (i, j) at texel (2 i + k % 2, 2 j + k / 2), rgb.
+ * Output out_image: SH coefficient k of probe (i, j) at texel (2 i + k % 2, 2 j + k / 2), rgb;
+ * irradiance_out: E0 of probe (i, j).
  */
 void main()
 {
@@ -15,6 +20,7 @@ void main()
   }
   vec4 own = texelFetch(sc_probes, probe, 0);
   vec3 c[4] = vec3[4](vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
+  vec3 e0 = vec3(0.0);
   if (own.w > 0.5) {
     float used = 0.0;
     for (int dy = -1; dy <= 1; dy++) {
@@ -30,7 +36,9 @@ void main()
         for (int k = 0; k < SCP_RAYS; k++) {
           vec3 L = texelFetch(sc_rays, q * SCP_SIZE + ivec2(k & 3, k >> 2), 0).rgb;
           float b[4];
-          sh4_basis(scp_dir(q, frame, k, qi.xyz), b);
+          vec3 dir = scp_dir(q, frame, k, qi.xyz);
+          sh4_basis(dir, b);
+          e0 += L * max(dot(dir, own.xyz), 0.0);
           for (int i = 0; i < 4; i++) {
             c[i] += L * b[i];
           }
@@ -38,10 +46,13 @@ void main()
         used += 1.0;
       }
     }
+    float w = 6.28318530717958648 / (float(SCP_RAYS) * used);
     for (int i = 0; i < 4; i++) {
-      c[i] *= 6.28318530717958648 / (float(SCP_RAYS) * used);
+      c[i] *= w;
     }
+    e0 *= w;
   }
+  imageStore(irradiance_out, probe, vec4(e0, 1.0));
   for (int i = 0; i < 4; i++) {
     imageStore(out_image, probe * 2 + ivec2(i & 1, i >> 1), vec4(c[i], 1.0));
   }
