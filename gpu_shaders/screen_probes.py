@@ -20,7 +20,7 @@ import numpy as np
 from . import compute
 from .probe_math import hammersley
 
-GI_LIBS = ("sampling_lib.glsl", "octahedral_lib.glsl", "gi_trace_lib.glsl")
+GI_LIBS = ("sampling_lib.glsl", "octahedral_lib.glsl", "sdf_ray_lib.glsl", "gi_trace_lib.glsl")
 
 
 class ScreenProbes:
@@ -105,12 +105,16 @@ class ScreenProbes:
 
         tex["integrated"] = compute.texture((self.width, self.height))
         sh = compute.shader("screen_probe_integrate",
-                            samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_sh"),
+                            samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
+                                      "probe_sh"),
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile')),
-                            libs=("sh_lib.glsl", "probe_interp_lib.glsl"))
+                            libs=("sh_lib.glsl", "probe_interp_lib.glsl", "sdf_ray_lib.glsl"),
+                            scene=True)
+        resources.bind(sh)
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
         sh.uniform_sampler("probe_info", tex["info"])
+        sh.uniform_sampler("probe_normal", tex["normal"])
         sh.uniform_sampler("probe_sh", tex["sh"])
         sh.uniform_float("cam_pos", compute.vec(cam_pos))
         sh.uniform_int("probe_tile", self.tile)

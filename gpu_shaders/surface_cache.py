@@ -139,10 +139,11 @@ class SurfaceCache:
         gw, gh = -(-lw // 4), -(-lh // 4)
         probe_libs = ("sampling_lib.glsl", "sh_lib.glsl", "surface_cache_probe_lib.glsl")
         rays, probes = _tex((gw * 4, gh * 4), 'RGBA32F'), _tex((gw, gh), 'RGBA32F')
+        probe_pos = _tex((gw, gh), 'RGBA32F')
         sh = pass_shader("surface_cache_probe_trace",
-                         ("global_sdf_lib.glsl",) + probe_libs + ("gi_trace_lib.glsl",), (),
+                         ("global_sdf_lib.glsl",) + probe_libs + ("sdf_ray_lib.glsl", "gi_trace_lib.glsl"), (),
                          (('VEC3', 'sky'), ('INT', 'frame'), ('FLOAT', 't_max')),
-                         images=("probe_out",), gsdf=True)
+                         images=("probe_out", "probe_pos_out"), gsdf=True)
         resources.bind(sh)
         self.bind(sh)
         gsdf.bind(sh)
@@ -152,6 +153,7 @@ class SurfaceCache:
         sh.uniform_float("t_max", float(t_max))
         sh.image("out_image", rays)
         sh.image("probe_out", probes)
+        sh.image("probe_pos_out", probe_pos)
         gpu.compute.dispatch(sh, -(-gw * 4 // GROUP), -(-gh * 4 // GROUP), 1)
 
         coeffs = _tex((gw * 2, gh * 2), 'RGBA32F')
@@ -168,15 +170,16 @@ class SurfaceCache:
         sh.image("irradiance_out", irradiance)
         gpu.compute.dispatch(sh, -(-gw // GROUP), -(-gh // GROUP), 1)
 
-        sh = pass_shader("surface_cache_indirect", probe_libs,
-                         ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_indirect_prev"),
-                         (('FLOAT', 'blend'),))
+        sh = pass_shader("surface_cache_indirect", probe_libs + ("sdf_ray_lib.glsl",),
+                         ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos",
+                          "sc_indirect_prev"), (('FLOAT', 'blend'),))
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
         sh.uniform_sampler("sc_probes", probes)
         sh.uniform_sampler("sc_probe_sh", coeffs)
         sh.uniform_sampler("sc_probe_irradiance", irradiance)
+        sh.uniform_sampler("sc_probe_pos", probe_pos)
         sh.uniform_sampler("sc_indirect_prev", self.indirect)
         sh.uniform_float("blend", float(blend))
         out = _tex(self.packed.lighting_size, 'RGBA32F')
@@ -184,7 +187,7 @@ class SurfaceCache:
         self._dispatch(sh)
         self.indirect = out
         self.probe_textures = {"rays": rays, "probes": probes, "sh": coeffs,
-                               "irradiance": irradiance}
+                               "irradiance": irradiance, "positions": probe_pos}
         self.frames += 1
 
     def combine(self, resources: SceneResources):

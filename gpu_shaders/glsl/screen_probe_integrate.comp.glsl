@@ -1,10 +1,12 @@
 /* Screen probes, per-pixel integration (lecture: "Final integration with SH" and "Plane distance
  * weighting of Probe Interpolation"): the 4 probes around the pixel (tile centres as the bilinear
- * grid), weighted by probe_corner_weights (bilinear x plane distance); irradiance
+ * grid), weighted by probe_corner_weights (bilinear x plane distance), probes that a wall hides
+ * from the pixel (sdf_ray_lib.glsl's gi_visible) left out; irradiance
  * E = sum w_i sh9_irradiance(c_i, n). Where no probe lies on the pixel's plane (lighting_valid 0:
  * silhouettes, thin objects) the valid probes are used by their bilinear weights alone, and the
  * pixel is flagged (w = 0) for the debug view.
- * Inputs: gbuf_position, gbuf_normal, probe_info, probe_sh; cam_pos, probe_tile.
+ * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, the mesh SDFs;
+ * cam_pos, probe_tile.
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0 fallback, -1 background.
  */
 void main()
@@ -30,10 +32,15 @@ void main()
   ivec2 q[4] = ivec2[4](i0, i0 + ivec2(1, 0), i0 + ivec2(0, 1), i0 + ivec2(1, 1));
   vec4 info[4];
   vec4 valid;
+  float h;
+  int obj;
+  sdf_scene(pos.xyz, h, obj);
+  float voxel = gi_object_voxel(max(obj, 0));
   for (int k = 0; k < 4; k++) {
     q[k] = clamp(q[k], ivec2(0), grid - 1);
     info[k] = texelFetch(probe_info, q[k], 0);
-    valid[k] = info[k].w > 0.0 ? 1.0 : 0.0;
+    valid[k] = info[k].w > 0.0 && gi_visible(pos.xyz, n, info[k].xyz,
+                                             texelFetch(probe_normal, q[k], 0).xyz, voxel) ? 1.0 : 0.0;
   }
   float depth = max(distance(pos.xyz, cam_pos), 1e-4);
   float ok;

@@ -1,10 +1,12 @@
 /* Surface cache indirect light, step 3: per lighting-atlas texel, the irradiance of the 2x2 probes
  * around it (bilinear between probe centres, probes on the same card only; its own block's probe
  * when none), E = E0 + sh4_irradiance(c, n) - sh4_irradiance(c, n_probe): the probe's exact
- * irradiance, corrected by the SH for the texel's own normal; then the temporal blend
+ * irradiance, corrected by the SH for the texel's own normal; a probe that a wall hides from the
+ * texel (gi_visible) is left out, and with no probe left the texel keeps its last value; then the
+ * temporal blend
  * E = mix(E_prev, E_new, blend). Multi-bounce: the probes read last frame's final light.
  * Inputs: texel_card, card tables and layers, sc_probes, sc_probe_sh, sc_probe_irradiance,
- * sc_indirect_prev; blend.
+ * sc_probe_pos, sc_indirect_prev; blend.
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 on surface texels.
  */
 void main()
@@ -34,6 +36,10 @@ void main()
     ivec2 q = clamp(i0 + d, ivec2(0), grid - 1);
     vec4 qi = texelFetch(sc_probes, q, 0);
     if (abs(qi.w - float(row + 1)) > 0.5) {
+      continue;
+    }
+    vec4 qp = texelFetch(sc_probe_pos, q, 0);
+    if (!gi_visible(p, n, qp.xyz, qi.xyz, qp.w)) {
       continue;
     }
     float w = (d.x == 1 ? f.x : 1.0 - f.x) * (d.y == 1 ? f.y : 1.0 - f.y) + 1e-3;

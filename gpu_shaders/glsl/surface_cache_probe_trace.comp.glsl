@@ -4,7 +4,8 @@
  * surface cache's final light at its hit (last frame's: one more bounce) or the sky.
  * Inputs: texel_card, card tables and layers, sc_final; sky, frame, t_max.
  * Outputs: out_image (rays): radiance rgb, a = 1 (0: no probe); probe_out (one texel per probe,
- * written by ray 0): world normal xyz, w = card row + 1 (0: no probe).
+ * written by ray 0): world normal xyz, w = card row + 1 (0: no probe); probe_pos_out: world position
+ * xyz, w = the object's voxel.
  */
 void main()
 {
@@ -22,6 +23,7 @@ void main()
     imageStore(out_image, tx, vec4(0.0));
     if (k == 0) {
       imageStore(probe_out, probe, vec4(0.0));
+      imageStore(probe_pos_out, probe, vec4(0.0));
     }
     return;
   }
@@ -30,6 +32,7 @@ void main()
   scp_surface(texel, row, p, n, obj);
   if (k == 0) {
     imageStore(probe_out, probe, vec4(n, float(row + 1)));
+    imageStore(probe_pos_out, probe, vec4(p, gi_object_voxel(obj)));
   }
   vec3 dir = scp_dir(probe, frame, k, n);
   float t, w;
