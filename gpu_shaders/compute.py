@@ -1,7 +1,8 @@
 """Small helpers every compute pass uses: build a shader once from a declaration, dispatch over
 an image, allocate and read RGBA32F textures. Needs a GPU context.
 
-A pass is declared by what it reads: `scene` (sdf_lib.glsl's three samplers), `surface_cache`
+A pass is declared by what it reads: `scene` (sdf_lib.glsl's three samplers; sdf_ray_lib.glsl
+comes with it), `surface_cache`
 (surface_cache_lib.glsl's), `global_sdf` (global_sdf_lib.glsl's), extra 2D float samplers, images
 (binding order = listed order, RGBA32F unless given) and push constants; its source is the
 libraries it needs followed by glsl/<name>.comp.glsl.
@@ -29,7 +30,7 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
     src = []
     if scene:
         slot = SceneResources.declare(info, slot)
-        src.append(glsl("sdf_lib.glsl"))
+        src += [glsl("sdf_lib.glsl"), glsl("sdf_ray_lib.glsl")]
     if surface_cache:
         from .surface_cache import SurfaceCache
         slot = SurfaceCache.declare(info, slot)

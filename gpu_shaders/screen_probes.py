@@ -8,7 +8,8 @@ Per frame, one GLSL pass each:
     screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
                             hit-distance clamp
     screen_probe_sh         9 SH coefficients per probe (exact texel solid angles)
-    screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, SH irradiance
+    screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, those a wall
+                            hides left out, SH irradiance; a pixel that sees none traces 16 rays
     screen_probe_temporal   mix with the history (running mean for F12, exponential in the viewport)
 Output: per-pixel indirect irradiance E (W/m^2); the composite divides by pi (Diffuse Indirect).
 Needs a GPU context.
@@ -20,7 +21,7 @@ import numpy as np
 from . import compute
 from .probe_math import hammersley
 
-GI_LIBS = ("sampling_lib.glsl", "octahedral_lib.glsl", "sdf_ray_lib.glsl", "gi_trace_lib.glsl")
+GI_LIBS = ("sampling_lib.glsl", "octahedral_lib.glsl", "gi_trace_lib.glsl")
 
 
 class ScreenProbes:
@@ -107,10 +108,16 @@ class ScreenProbes:
         sh = compute.shader("screen_probe_integrate",
                             samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
                                       "probe_sh"),
-                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile')),
-                            libs=("sh_lib.glsl", "probe_interp_lib.glsl", "sdf_ray_lib.glsl"),
-                            scene=True)
+                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('VEC3', 'sky'),
+                                  ('INT', 'frame'), ('FLOAT', 't_max')),
+                            libs=("sh_lib.glsl", "probe_interp_lib.glsl") + GI_LIBS,
+                            scene=True, surface_cache=True, global_sdf=True)
         resources.bind(sh)
+        cache.bind(sh)
+        gsdf.bind(sh)
+        sh.uniform_float("sky", compute.vec(sky))
+        sh.uniform_int("frame", int(frame))
+        sh.uniform_float("t_max", float(t_max))
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
         sh.uniform_sampler("probe_info", tex["info"])

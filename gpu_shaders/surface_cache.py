@@ -141,7 +141,7 @@ class SurfaceCache:
         rays, probes = _tex((gw * 4, gh * 4), 'RGBA32F'), _tex((gw, gh), 'RGBA32F')
         probe_pos = _tex((gw, gh), 'RGBA32F')
         sh = pass_shader("surface_cache_probe_trace",
-                         ("global_sdf_lib.glsl",) + probe_libs + ("sdf_ray_lib.glsl", "gi_trace_lib.glsl"), (),
+                         ("global_sdf_lib.glsl",) + probe_libs + ("gi_trace_lib.glsl",), (),
                          (('VEC3', 'sky'), ('INT', 'frame'), ('FLOAT', 't_max')),
                          images=("probe_out", "probe_pos_out"), gsdf=True)
         resources.bind(sh)
@@ -170,7 +170,7 @@ class SurfaceCache:
         sh.image("irradiance_out", irradiance)
         gpu.compute.dispatch(sh, -(-gw // GROUP), -(-gh // GROUP), 1)
 
-        sh = pass_shader("surface_cache_indirect", probe_libs + ("sdf_ray_lib.glsl",),
+        sh = pass_shader("surface_cache_indirect", probe_libs,
                          ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos",
                           "sc_indirect_prev"), (('FLOAT', 'blend'),))
         resources.bind(sh)
@@ -260,7 +260,7 @@ def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False)
     """A compute shader over the lighting atlas (GROUP x GROUP): the SDF and surface-cache
     samplers, `texel_card`, an RGBA32F `out_image`, extra 2D `samplers`, `push` constants
     ((type, name)) and more write-only RGBA32F `images`, with gsdf the global SDF's samplers and
-    constants, then sdf_lib, surface_cache_lib, `libs` and glsl/<name>.comp.glsl."""
+    constants, then sdf_lib, sdf_ray_lib, surface_cache_lib, `libs` and glsl/<name>.comp.glsl."""
     if name not in _SHADERS:
         info = gpu.types.GPUShaderCreateInfo()
         info.local_group_size(GROUP, GROUP, 1)
@@ -276,7 +276,8 @@ def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False)
             info.image(k, 'RGBA32F', 'FLOAT_2D', image, qualifiers={'WRITE'})
         for kind, pname in push:
             info.push_constant(kind, pname)
-        src = [glsl("sdf_lib.glsl"), glsl("surface_cache_lib.glsl")] + [glsl(n) for n in libs]
+        src = [glsl("sdf_lib.glsl"), glsl("sdf_ray_lib.glsl"), glsl("surface_cache_lib.glsl")] \
+            + [glsl(n) for n in libs]
         info.compute_source("\n".join(src + [glsl(name + ".comp.glsl")]))
         _SHADERS[name] = gpu.shader.create_from_info(info)
     return _SHADERS[name]

@@ -57,7 +57,7 @@ vec3 gi_radiance(vec3 o, vec3 dir, float tmax, vec3 sky, out float hit_t, out fl
 {
   int obj;
   if (gi_trace(o, dir, tmax, hit_t, obj)) {
-    return sc_sample_world(obj, o + hit_t * dir, weight);
+    return sc_sample_world(obj, o + hit_t * dir, dir, weight);
   }
   hit_t = tmax;
   weight = 1.0;

@@ -3,12 +3,15 @@
  * grid), weighted by probe_corner_weights (bilinear x plane distance), probes that a wall hides
  * from the pixel (sdf_ray_lib.glsl's gi_visible) left out; irradiance
  * E = sum w_i sh9_irradiance(c_i, n). Where no probe lies on the pixel's plane (lighting_valid 0:
- * silhouettes, thin objects) the valid probes are used by their bilinear weights alone, and the
- * pixel is flagged (w = 0) for the debug view.
+ * silhouettes, thin objects) the visible probes are used by their bilinear weights alone, and with
+ * none visible the pixel traces FALLBACK_RAYS rays itself; such pixels are flagged (w = 0) for the
+ * debug view.
  * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, the mesh SDFs;
- * cam_pos, probe_tile.
+ * cam_pos, probe_tile; for the fallback rays the surface cache and global SDF, sky, frame, t_max.
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0 fallback, -1 background.
  */
+#define FALLBACK_RAYS 16
+
 void main()
 {
   ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -47,8 +50,24 @@ void main()
   vec4 w = probe_corner_weights(f, info[0].xyz, info[1].xyz, info[2].xyz, info[3].xyz, valid,
                                 vec4(n, dot(n, pos.xyz)), depth, ok);
   if (ok < 0.5) {
-    vec4 bw = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y) * valid;
+    vec4 bw = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
+    bw *= valid;
     w = bw / max(dot(bw, vec4(1.0)), 1e-6);
+    if (dot(valid, vec4(1.0)) == 0.0) {
+      /* No probe this pixel can see (silhouettes, a strip along a thin wall): gather here with
+       * FALLBACK_RAYS cosine rays (the lecture refines with smaller probes; a pixel is the limit). */
+      uint seed = pcg_hash(uint(px.x) + 7919u * uint(px.y)) ^ pcg_hash(uint(frame) + 0x2545f491u);
+      vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
+      vec3 o = pos.xyz + n * max(voxel, 1e-3);
+      vec3 sum = vec3(0.0);
+      for (int i = 0; i < FALLBACK_RAYS; i++) {
+        vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(FALLBACK_RAYS)) + rot), n);
+        float t, wt;
+        sum += gi_radiance(o, dir, t_max, sky, t, wt);
+      }
+      imageStore(out_image, px, vec4(3.14159265358979 * sum / float(FALLBACK_RAYS), 0.0));
+      return;
+    }
   }
   vec3 E = vec3(0.0);
   for (int k = 0; k < 4; k++) {

@@ -29,6 +29,7 @@ void main()
   vec3 pl = (w2l * vec4(pos.xyz, 1.0)).xyz;
   vec3 nl = normalize(transpose(inverse(mat3(w2l))) * n);
   float weight;
-  vec3 v = sc_sample_local(obj, pl, nl, sdf_object_texel(obj, 4).w, weight);
+  vec3 v = sc_sample_local(obj, pl, nl, sdf_object_texel(obj, 4).w, inverse(w2l),
+                           gi_object_voxel(obj), weight);
   imageStore(out_image, px, weight > 0.0 ? vec4(v, weight) : vec4(1.0, 0.0, 1.0, 0.0));
 }
