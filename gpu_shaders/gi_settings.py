@@ -38,11 +38,15 @@ class GISettings:
         return self.quality != "OFF"
 
     def render_schedule(self):
-        """F12: [(surface-cache blend, probe blend or None), ...] per iteration. The first
+        """F12: [(surface-cache blend or None, probe blend or None), ...] per iteration. The first
         bounces - 1 iterations replace the cache's indirect light (one more bounce each) and
-        gather nothing; then render_frames iterations average both (running means)."""
+        gather nothing; then render_frames iterations average the probes (running mean) while
+        the cache is re-traced every other one (a running mean too): the cache is the costly
+        part and its noise is averaged again by every probe ray that reads it."""
         warm = [(1.0, None)] * max(self.bounces - 1, 0)
-        return warm + [(1.0 / (j + 1), 1.0 / (j + 1)) for j in range(max(self.render_frames, 1))]
+        frames = max(self.render_frames, 1)
+        return warm + [(1.0 / (j // 2 + 1) if j % 2 == 0 else None, 1.0 / (j + 1))
+                       for j in range(frames)]
 
 
 def settings(quality: str = "MEDIUM", **overrides) -> GISettings:

@@ -61,25 +61,75 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
         if scene.render.engine == 'LUMEN_GI':
             box = layout.box()
             box.label(text="Preview Engine", icon='SHADING_RENDERED')
+            draw_gi_settings(box, s)
             box.prop(s, "debug_view")
-            from ..gpu_shaders.engine import MEMORY
-            memory = MEMORY.get(scene.name)
-            grid = box.column(align=True)
-            if memory:
-                for label, value in list(memory.items()) + [("total", sum(memory.values()))]:
-                    row = grid.split(factor=0.5)
-                    row.label(text=f"GPU {label}")
-                    row.label(text=human_bytes(value))
-            else:
-                grid.label(text="GPU memory: render once to measure")
+            draw_memory(box, scene)
 
         layout.operator("lumen.export_cache", icon='EXPORT')
         layout.operator("lumen.open_atlas", icon='IMAGE_DATA')
 
 
+def draw_gi_settings(layout, s):
+    col = layout.column()
+    col.prop(s, "gi_quality")
+    sub = col.column()
+    sub.active = s.gi_quality != 'OFF'
+    sub.prop(s, "bounces")
+    sub.prop(s, "render_frames")
+    sub.prop(s, "gi_gather")
+
+
+def draw_memory(layout, scene):
+    """GPU bytes per resource of the last frame, grouped by stage (SDF, cards, global SDF, probes)."""
+    from ..gpu_shaders.engine import MEMORY
+
+    memory = MEMORY.get(scene.name)
+    grid = layout.column(align=True)
+    if not memory:
+        grid.label(text="GPU memory: render once to measure")
+        return
+    stages = {}
+    for name, value in memory.items():
+        stage = ("Cards" if name.startswith("cards_") else "Global SDF" if name.startswith("global_sdf")
+                 else "Screen probes" if name.startswith("probes_") else "Lights" if name == "lights"
+                 else "Mesh SDFs")
+        stages[stage] = stages.get(stage, 0) + value
+    for label, value in list(stages.items()) + [("Total", sum(memory.values()))]:
+        row = grid.split(factor=0.5)
+        row.label(text=f"GPU {label}")
+        row.label(text=human_bytes(value))
+
+
+class RENDER_PT_lumen_gi(bpy.types.Panel):
+    """Render properties of the Lumen GI engine: GI quality, bounces, F12 accumulation."""
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "render"
+    bl_label = "Lumen GI"
+    COMPAT_ENGINES = {'LUMEN_GI'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        s = context.scene.lumen
+        draw_gi_settings(layout, s)
+        layout.prop(s, "debug_view")
+        draw_memory(layout, context.scene)
+
+
+_CLASSES = (VIEW3D_PT_lumen, RENDER_PT_lumen_gi)
+
+
 def register():
-    bpy.utils.register_class(VIEW3D_PT_lumen)
+    for cls in _CLASSES:
+        bpy.utils.register_class(cls)
 
 
 def unregister():
-    bpy.utils.unregister_class(VIEW3D_PT_lumen)
+    for cls in reversed(_CLASSES):
+        bpy.utils.unregister_class(cls)

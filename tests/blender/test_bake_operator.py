@@ -207,7 +207,14 @@ def test_panel_draws_existing_properties_and_operators(blender):
 
         log = []
         VIEW3D_PT_lumen.draw(type("P", (), {"layout": Layout(log)})(), bpy.context)
-        emit(log=log, category=VIEW3D_PT_lumen.bl_category, region=VIEW3D_PT_lumen.bl_region_type)
+        from lumen_gi.operators.panel import RENDER_PT_lumen_gi
+        bpy.context.scene.render.engine = "LUMEN_GI"
+        gi_log = []
+        VIEW3D_PT_lumen.draw(type("P", (), {"layout": Layout(gi_log)})(), bpy.context)
+        render_log = []
+        RENDER_PT_lumen_gi.draw(type("P", (), {"layout": Layout(render_log)})(), bpy.context)
+        emit(log=log, gi_log=gi_log, render_log=render_log, category=VIEW3D_PT_lumen.bl_category,
+             region=VIEW3D_PT_lumen.bl_region_type)
     """)
     r = res.result
     assert r["category"] == "Lumen" and r["region"] == "UI"
@@ -218,3 +225,7 @@ def test_panel_draws_existing_properties_and_operators(blender):
     labels = [name for kind, name in r["log"] if kind == "label"]
     for label in ("Cards", "Texels", "Coverage"):
         assert label in labels
+    gi = ["gi_quality", "bounces", "render_frames", "gi_gather", "debug_view"]
+    for log in (r["gi_log"], r["render_log"]):               # engine chosen: GI controls shown
+        names = [name for kind, name in log if kind == "prop"]
+        assert all(name in names for name in gi), names
