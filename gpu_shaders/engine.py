@@ -1,28 +1,36 @@
-"""The Lumen GI render engine (preview): G-buffer, SDF resources of the last bake, direct light.
+"""The Lumen GI render engine (preview): G-buffer, direct light, dynamic global illumination.
 
-`render()` runs, for the scene camera, the G-buffer pass (gbuffer.py: the evaluated meshes drawn
-with gpu batches), uploads the bake's SDFs (resources.py) and runs the direct light pass
-(direct_light.py: lights and sky with SDF cone-traced shadows). It writes
-    Combined        albedo * direct + emission (world colour on the background), alpha 1
-    Diffuse Direct  E / pi, the convention of Cycles' pass of that name (albedo excluded)
-    Diffuse Color   the albedo: G-buffer base colour (Cycles' name for it)
-    Normal          world normal
-(Blender 5.0's own names, so the passes line up with Cycles' in the compositor and in EXRs),
-hence Combined = Diffuse Color x Diffuse Direct + Emission as in Cycles (no indirect light yet).
+`frame()` runs, for the scene camera (render) or the viewport's view (view_draw):
+    G-buffer        gbuffer.py: the evaluated meshes drawn with gpu batches
+    direct light    direct_light.py: lights with SDF cone-traced soft shadows (and, with GI off,
+                    SDF-occluded sky light)
+    GI              gi.py: global SDF clipmaps, surface cache (cards: direct light, radiosity
+                    probes, bounces), screen probes, temporal (see gi.py for the order)
+    composite       composite.py: albedo x (direct + indirect) + emission
+It writes
+    Combined         the lit image (world colour on the background), alpha 1
+    Diffuse Direct   E_direct / pi, Cycles' convention (albedo excluded; with GI on the sky's
+                     light is in Diffuse Indirect, where the probes' rays find it)
+    Diffuse Indirect E_indirect / pi
+    Diffuse Color    the albedo: G-buffer base colour
+    Normal           world normal
+(Blender 5.0's own names, so the passes line up with Cycles' in the compositor and in EXRs).
 
-Debug views (`scene.lumen.debug_view`, in the N-panel) replace what Combined shows:
-    COMBINED  the lit image          NORMAL  world normal * 0.5 + 0.5
-    ALBEDO    the G-buffer albedo    DIRECT  Diffuse Direct
-    DEPTH     only the SDF trace pass: hit depth as grey (near = bright, far = dark, miss = black)
-    STEPS     only the SDF trace pass: sphere-tracing steps per pixel as a blue-green-red heat map
-(the older scene custom property "lumen_preview_view" = "DEPTH" still selects DEPTH).
+Debug views (`scene.lumen.debug_view`, N-panel and Render Properties) replace what Combined
+shows: COMBINED, NORMAL, ALBEDO, DIRECT, INDIRECT; the SDF trace alone: DEPTH (hit distance),
+STEPS (heat map), HYBRID (green: mesh-SDF hit, blue: global-SDF hit); the surface cache seen
+through the cards: SC_FINAL, SC_ALBEDO, SC_NORMAL, SC_DIRECT, SC_INDIRECT, CARDS (a colour per
+card; magenta where no card sees the point); PROBES (the probe radiance atlas) and
+PROBE_FALLBACK (green: interpolated from probes, red: traced per pixel).
 
 GPU inputs live in a per-scene scene_state.SceneState shared by render() and the viewport: a
 frame re-uploads only what changed (the object table for moved objects, the light rows for
-changed lights, the brick atlas and indirection only when the set of baked meshes changed).
-`view_update` reads depsgraph.updates (transform / geometry / light / world ids) into
-LAST_VIEW_UPDATE and tags a redraw; `view_draw` runs the same `frame()` as render() for the
-viewport's matrices and region size and draws Combined through Blender's display transform.
+changed lights, the brick atlas and indirection only when the set of baked meshes changed, the
+card textures when the cards did). F12 (`final=True`) accumulates GI from scratch
+(GISettings.render_schedule: deterministic); the viewport adds one GI iteration per redraw to
+its history and asks for redraws until the history is full. `view_update` reads
+depsgraph.updates into LAST_VIEW_UPDATE and tags a redraw; `view_draw` draws Combined through
+Blender's display transform.
 
 It works headless: Blender gives a RenderEngine with bl_use_gpu_context a GPU context in
 background mode too (Mesa llvmpipe).
@@ -168,7 +176,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
         if view == "HYBRID":
             out = _hybrid_trace(state, scene, cam_pos, inv_vp, width, height, clip_end)
-            img = hybrid_colours(out["hit"], out["global_steps"])
+            img = hybrid_colours(out["hit"], out["global"])
         else:
             out = sdf_trace.trace(res, inv_vp, width, height, t_max=clip_end)
             img = depth_grey(out["hit"]) if view == "DEPTH" else steps_heat(out["steps"])
@@ -218,26 +226,28 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
             "Diffuse Color": gbuf["albedo"], "Normal": gbuf["normal"]}
 
 
-def hybrid_colours(hit: np.ndarray, global_steps: np.ndarray) -> np.ndarray:
+def hybrid_colours(hit: np.ndarray, global_part) -> np.ndarray:
     """RGBA [h, w, 4]: green where the mesh SDFs hit, blue where the global SDF did, black misses."""
     rgba = np.zeros(hit.shape + (4,), np.float32)
     rgba[..., 3] = 1.0
     hits = hit >= 0
-    rgba[hits & (global_steps == 0), 1] = 1.0
-    rgba[hits & (global_steps > 0), 2] = 1.0
+    rgba[hits & ~global_part, 1] = 1.0
+    rgba[hits & global_part, 2] = 1.0
     return rgba
 
 
 def _hybrid_trace(state, scene, cam_pos, inv_vp, width, height, clip_end):
+    """The GI tracer (gi_trace_lib.glsl) along camera rays: where it hits and with which part."""
     from . import gi, gi_settings
-    from .global_sdf import trace_hybrid
+    from .screen_probes import trace_view
 
     cfg = gi_settings.from_scene(scene.lumen)
     if not cfg.enabled:
         cfg = gi_settings.settings("MEDIUM")
     g = gi._global_sdf(state, cfg)
     g.update(cam_pos, state.gi_frame, "objects" in state.last_changes)
-    return trace_hybrid(g, inv_vp, width, height, t_max=clip_end)
+    return trace_view(state.resources, g, state.surface_cache, inv_vp, width, height,
+                      min(float(clip_end), 100.0))
 
 
 def _debug_image(view, state, gbuf, cam_pos, width, height, combined, direct, indirect, gi_cfg):

@@ -176,3 +176,23 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     sh.image("out_image", out)
     compute.dispatch(sh, width, height)
     return out
+
+
+def trace_view(resources, gsdf, cache, inv_view_proj, width: int, height: int, t_max: float) -> dict:
+    """glsl/gi_trace_view.comp.glsl: gi_trace per camera ray (the HYBRID debug view).
+    Returns {'hit' (-1 miss), 'global' (bool: the hit came from the global-SDF part)}."""
+    import mathutils
+
+    out = compute.texture((width, height))
+    sh = compute.shader("gi_trace_view", push=(('MAT4', 'inv_view_proj'), ('FLOAT', 't_max')),
+                        libs=("camera_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
+                        global_sdf=True)
+    resources.bind(sh)
+    cache.bind(sh)
+    gsdf.bind(sh)
+    sh.uniform_float("inv_view_proj", mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
+    sh.uniform_float("t_max", float(t_max))
+    sh.image("out_image", out)
+    compute.dispatch(sh, width, height)
+    data = compute.read(out)
+    return {"hit": data[..., 0].copy(), "global": data[..., 1] > 0.5}

@@ -78,13 +78,19 @@ assert err is None, err
 baked = bake_op.LAST_BAKES[scene.name]
 render("rebake_new_mesh")
 views = {{}}
-for view in ("STEPS", "DEPTH", "NORMAL", "ALBEDO", "DIRECT", "COMBINED"):
+for view in ("STEPS", "DEPTH", "NORMAL", "ALBEDO", "DIRECT", "INDIRECT", "HYBRID", "SC_FINAL",
+             "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS", "PROBES",
+             "PROBE_FALLBACK", "COMBINED"):
     scene.lumen.debug_view = view
     bpy.ops.render.render()
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("traceback", R.get("error"))
     views[view] = dict(changes=R["changes"], view=R["view"],
                        max_steps=int(R["steps"].max()) if "steps" in R else None)
+    images["view_" + view] = R["shown"].copy()
+    if "position" in R:
+        images["view_position"] = R["position"].copy()
+        images["view_albedo"] = R["albedo"].copy()
 np.savez("images.npz", **images)
 emit(views=views, steps=steps, memory=engine.MEMORY[scene.name])
 """
@@ -119,7 +125,19 @@ def test_moves_reupload_only_what_changed(tmp_path):
     assert mem["atlas"] > 0 and mem["objects"] == 4 * 9 * 16   # 4 instances x 9 RGBA32F texels
 
     img = np.load(tmp_path / "images.npz")
-    np.testing.assert_array_equal(img["first"], img["again"])
+    np.testing.assert_array_equal(img["first"], img["again"])   # F12 GI is deterministic
+    surface = img["view_position"][..., 3] > 0.5
+    # The cards seen through the surface cache lookup: their albedo is the G-buffer's where a card
+    # sees the point (all but edges and corners), and no card is missing anywhere else.
+    magenta = np.all(np.abs(img["view_CARDS"][..., :3] - [1.0, 0.0, 1.0]) < 1e-6, axis=-1)
+    assert magenta[surface].mean() < 0.03
+    close = np.abs(img["view_SC_ALBEDO"][..., :3] - img["view_albedo"][..., :3]).max(axis=-1) < 0.05
+    assert close[surface & ~magenta].mean() > 0.95
+    hybrid = img["view_HYBRID"]
+    hits = (hybrid[..., 1] + hybrid[..., 2]) > 0
+    # the camera is 5-6 m away: beyond the mesh SDFs' 1.8 m, hits are the global SDF's (blue)
+    assert hits[surface].mean() > 0.95 and hybrid[hits, 2].mean() > 0.9
+    assert img["view_INDIRECT"][surface, :3].mean() > 0.0
     red0, x0 = red_columns(img["first_albedo"])
     red1, x1 = red_columns(img["moved_object_albedo"])
     assert red0.sum() > 50 and red1.sum() > 50 and x1 > x0 + 3   # the red box moved right
