@@ -84,7 +84,8 @@ class ScreenProbes:
         sh = compute.shader("screen_probe_filter",
                             samplers=("probe_info", "probe_normal", "probe_radiance"),
                             push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')),
-                            libs=("octahedral_lib.glsl",))
+                            libs=("octahedral_lib.glsl",), scene=True)
+        resources.bind(sh)
         sh.uniform_sampler("probe_info", tex["info"])
         sh.uniform_sampler("probe_normal", tex["normal"])
         sh.uniform_sampler("probe_radiance", tex["radiance"])

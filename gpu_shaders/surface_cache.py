@@ -158,13 +158,14 @@ class SurfaceCache:
 
         coeffs = _tex((gw * 2, gh * 2), 'RGBA32F')
         irradiance = _tex((gw, gh), 'RGBA32F')
-        sh = pass_shader("surface_cache_probe_sh", probe_libs, ("sc_rays", "sc_probes"),
+        sh = pass_shader("surface_cache_probe_sh", probe_libs, ("sc_rays", "sc_probes", "sc_probe_pos"),
                          (('INT', 'frame'),), images=("irradiance_out",))
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
         sh.uniform_sampler("sc_rays", rays)
         sh.uniform_sampler("sc_probes", probes)
+        sh.uniform_sampler("sc_probe_pos", probe_pos)
         sh.uniform_int("frame", int(frame))
         sh.image("out_image", coeffs)
         sh.image("irradiance_out", irradiance)

@@ -7,8 +7,10 @@
  *     FILTER_MAX_ANGLE of the texel's direction (else the neighbour saw something this probe
  *     sees elsewhere: parallax near occluders); sky misses are far and pass;
  *   - hit-distance clamp: a neighbour's hit closer than this probe's own is trusted only up to
- *     the own distance (its occluder might not be in this probe's view).
- * Inputs: probe_info, probe_normal, probe_radiance; probe_res, ray_jitter.
+ *     the own distance (its occluder might not be in this probe's view);
+ *   - visibility: a neighbour that a wall hides from this probe (gi_visible) is left out (an
+ *     inside probe next to a thin wall must not average the outside's sky).
+ * Inputs: probe_info, probe_normal, probe_radiance, the mesh SDFs; probe_res, ray_jitter.
  * Output out_image: filtered radiance rgb, a = own hit distance.
  */
 #define FILTER_SHARPNESS 1000.0
@@ -52,6 +54,13 @@ void main()
       vec3 seen = qi.xyz + dir * hit - info.xyz;
       float len = length(seen);
       if (len > 1e-4 && dot(seen / len, dir) < FILTER_MAX_ANGLE_COS) {
+        continue;
+      }
+      float hh;
+      int oo;
+      sdf_scene(info.xyz, hh, oo);
+      if (!gi_visible(info.xyz, n, qi.xyz, texelFetch(probe_normal, q, 0).xyz,
+                      gi_object_voxel(max(oo, 0)))) {
         continue;
       }
       sum += w * s.rgb;

@@ -49,6 +49,18 @@ float gi_object_voxel(int obj)
   return sdf_object_texel(obj, 4).w * sdf_object_texel(obj, 7).w;
 }
 
+/* Direction in which the scene SDF rises at p (central differences over half a voxel). */
+vec3 gi_scene_gradient(vec3 p, float voxel)
+{
+  float h;
+  int o;
+  vec2 k = vec2(0.5 * voxel, 0.0);
+  vec3 g = vec3(sdf_scene(p + k.xyy, h, o) - sdf_scene(p - k.xyy, h, o),
+                sdf_scene(p + k.yxy, h, o) - sdf_scene(p - k.yxy, h, o),
+                sdf_scene(p + k.yyx, h, o) - sdf_scene(p - k.yyx, h, o));
+  return g;
+}
+
 /* Whether light gathered at b may be used at a (nearby points on surfaces with normals na, nb):
  * both lifted GI_LIFT_VOXELS off their surfaces, the segment between them must not meet a surface
  * (gi_trace_mesh, the thin-wall rule included). Interpolating probes across a wall is how light
@@ -79,8 +91,14 @@ bool gi_visible(vec3 a, vec3 na, vec3 b, vec3 nb, float voxel)
   float shell = GI_HIT_VOXELS * voxel;
   vec3 d = pb - pa;
   float len = length(d);
-  if (da <= shell || len < shell) {
-    return true;              /* both ends crowded, or the same point: no test possible */
+  if (len < shell) {
+    return true;
+  }
+  if (da <= shell) {
+    /* Both ends within half a voxel of a surface: no ray can tell. Two points on the two sides
+     * of a wall thinner than a voxel see its field rise away from it in opposite directions;
+     * two points in one concave corner see the same. */
+    return dot(gi_scene_gradient(pa, voxel), gi_scene_gradient(pb, voxel)) > 0.0;
   }
   float stop = db <= shell + 0.25 * voxel ? len - GI_STOP_MARGIN * (shell + 0.25 * voxel - db) : len;
   if (stop <= 0.0) {

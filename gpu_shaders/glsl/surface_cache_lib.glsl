@@ -80,6 +80,15 @@ vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, mat4 l2w, float guard_v
 {
   vec3 pw = (l2w * vec4(p, 1.0)).xyz;
   vec3 nw = normalize(transpose(inverse(mat3(l2w))) * n);
+  /* Room around p (lifted as gi_visible lifts it): a wall between p and a texel of its 2x2
+   * footprint lies within two texels of it, so with more room than that no texel is tested. */
+  float room = 1e30;
+  if (guard_voxel > 0.0) {
+    float hh;
+    int oo;
+    room = sdf_scene(pw + nw * (GI_LIFT_VOXELS * guard_voxel), hh, oo);
+  }
+  float scale = sdf_object_texel(obj, 7).w;
   ivec2 range = sc_instance_range(obj);
   vec3 sum = vec3(0.0);
   weight = 0.0;
@@ -117,7 +126,7 @@ vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, mat4 l2w, float guard_v
       if (op < 0.5 || abs(td - depth) > dtol) {
         continue;
       }
-      if (guard_voxel > 0.0) {
+      if (guard_voxel > 0.0 && room < 2.0 * max(ts.x, ts.y) * scale + GI_HIT_VOXELS * guard_voxel) {
         vec3 q = vec3(0.0);
         vec2 uv = t2.xy + (vec2(ij) + 0.5) * ts;
         q[pl.x] = uv.x;

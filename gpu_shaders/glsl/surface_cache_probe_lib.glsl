@@ -1,6 +1,6 @@
 /* Lumen GI: surface-cache radiosity probes (lecture: "Indirect Lighting": 2x2 probes per 8x8 tile,
  * each probe covering 4x4 texels, 16 rays, jittered placement and directions).
- * Needs sdf_lib.glsl, surface_cache_lib.glsl, sampling_lib.glsl; texel_card.
+ * Needs sdf_lib.glsl, sdf_ray_lib.glsl, surface_cache_lib.glsl, sampling_lib.glsl; texel_card.
  * card_packing.py aligns every card of the lighting atlas to 4 texels, so a probe's 4x4 block
  * belongs to one card (or none). A probe sits on one texel of its block: the frame's jittered
  * texel, else the next valid one in scan order; its rays are a 16-point Hammersley set over the
@@ -15,7 +15,23 @@ uint scp_seed(ivec2 probe, int frame)
   return pcg_hash(uint(probe.x) + 8191u * uint(probe.y)) ^ pcg_hash(uint(frame) * 0x9e3779b9u + 17u);
 }
 
-/* The probe's texel; false when its block holds no surface. row: the texel's card row. */
+/* World position and normal of lighting texel `texel` on card row `row`. */
+void scp_surface(ivec2 texel, int row, out vec3 p, out vec3 n, out int obj)
+{
+  vec3 pl, nl, albedo, emissive;
+  vec4 t0 = sc_card(row, 0);
+  sc_texel_surface(row, texel - ivec2(t0.zw + 0.5), pl, nl, albedo, emissive);
+  obj = int(t0.x + 0.5);
+  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
+                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
+  p = (inverse(w2l) * vec4(pl, 1.0)).xyz;
+  n = normalize(transpose(mat3(w2l)) * nl);
+}
+
+/* The probe's texel; false when its block holds no surface. row: the texel's card row. A texel
+ * whose ray origin (one voxel off the surface) lies within half a voxel of any surface is no
+ * site for a probe: it is covered (a floor under a wall standing on it) or in a crevice, and its
+ * rays would start inside a wall and gather the light of its other side. */
 bool scp_texel(ivec2 probe, int frame, out ivec2 texel, out int row)
 {
   int start = int(scp_seed(probe, frame) & 15u);
@@ -29,24 +45,19 @@ bool scp_texel(ivec2 probe, int frame, out ivec2 texel, out int row)
     vec4 t1 = sc_card(row, 1);
     ivec2 ij = texel - ivec2(sc_card(row, 0).zw + 0.5);
     if (texelFetch(sc_albedo, ivec2(t1.xy + 0.5) + ij, 0).a > 0.5) {
-      return true;
+      vec3 p, n;
+      int obj;
+      scp_surface(texel, row, p, n, obj);
+      float h;
+      int o;
+      float v = gi_object_voxel(obj);
+      if (sdf_scene(p + n * v, h, o) > GI_HIT_VOXELS * h) {
+        return true;
+      }
     }
   }
   row = -1;
   return false;
-}
-
-/* World position and normal of lighting texel `texel` on card row `row`. */
-void scp_surface(ivec2 texel, int row, out vec3 p, out vec3 n, out int obj)
-{
-  vec3 pl, nl, albedo, emissive;
-  vec4 t0 = sc_card(row, 0);
-  sc_texel_surface(row, texel - ivec2(t0.zw + 0.5), pl, nl, albedo, emissive);
-  obj = int(t0.x + 0.5);
-  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
-                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
-  p = (inverse(w2l) * vec4(pl, 1.0)).xyz;
-  n = normalize(transpose(mat3(w2l)) * nl);
 }
 
 /* Ray k of a probe with normal n: uniform over the hemisphere, stratified. */

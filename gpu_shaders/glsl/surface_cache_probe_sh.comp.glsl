@@ -1,13 +1,14 @@
 /* Surface cache indirect light, step 2: spatial filter + two-band SH (lecture: "Spatial filtering
  * between probes, convert to TwoBandSH"). Per probe, the rays of the 3x3 neighbouring probes on
- * the same card whose normals agree (cos > 0.9) are projected together:
+ * the same card whose normals agree (cos > 0.9) and that no wall hides (gi_visible: the two sides of
+ * a thin wall on one floor card must not mix) are projected together:
  *   c_k = sum_rays L Y_k(dir) (2 pi / 16) / (probes used)
  * (uniform hemisphere rays: each ray stands for 2 pi / 16 sr; the other hemisphere is empty).
  * Also the irradiance at the probe's own normal from the same rays, E0 = sum L max(0, n.dir)
  * (2 pi / 16) / (probes used): exact where two-band SH is not (a small bright source near the
  * normal reads 25% low through SH4's clamped-cosine convolution); the texels use E0 and take from
  * the SH only how their normal differs from the probe's.
- * Inputs: sc_rays, sc_probes (trace outputs); frame.
+ * Inputs: sc_rays, sc_probes, sc_probe_pos (trace outputs); frame.
  * Output out_image: SH coefficient k of probe (i, j) at texel (2 i + k % 2, 2 j + k / 2), rgb;
  * irradiance_out: E0 of probe (i, j).
  */
@@ -32,6 +33,13 @@ void main()
         vec4 qi = texelFetch(sc_probes, q, 0);
         if (abs(qi.w - own.w) > 0.5 || dot(qi.xyz, own.xyz) < 0.9) {
           continue;
+        }
+        if (q != probe) {
+          vec4 a = texelFetch(sc_probe_pos, probe, 0);
+          vec4 b = texelFetch(sc_probe_pos, q, 0);
+          if (!gi_visible(a.xyz, own.xyz, b.xyz, qi.xyz, a.w)) {
+            continue;
+          }
         }
         for (int k = 0; k < SCP_RAYS; k++) {
           vec3 L = texelFetch(sc_rays, q * SCP_SIZE + ivec2(k & 3, k >> 2), 0).rgb;
