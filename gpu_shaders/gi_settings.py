@@ -40,13 +40,12 @@ class GISettings:
     def render_schedule(self):
         """F12: [(surface-cache blend or None, probe blend or None), ...] per iteration. The first
         bounces - 1 iterations replace the cache's indirect light (one more bounce each) and
-        gather nothing; then render_frames iterations average the probes (running mean) while
-        the cache is re-traced every other one (a running mean too): the cache is the costly
-        part and its noise is averaged again by every probe ray that reads it."""
+        gather nothing; then render_frames iterations average both (running means). (Re-tracing
+        the cache only every other frame was measured: 2x faster cache, but the window room's
+        relMSE rose from 0.060 to 0.067: its light needs every bounce.)"""
         warm = [(1.0, None)] * max(self.bounces - 1, 0)
         frames = max(self.render_frames, 1)
-        return warm + [(1.0 / (j // 2 + 1) if j % 2 == 0 else None, 1.0 / (j + 1))
-                       for j in range(frames)]
+        return warm + [(1.0 / (j + 1), 1.0 / (j + 1)) for j in range(frames)]
 
 
 def settings(quality: str = "MEDIUM", **overrides) -> GISettings:

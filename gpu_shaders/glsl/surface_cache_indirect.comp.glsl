@@ -7,7 +7,8 @@
  * E = mix(E_prev, E_new, blend). Multi-bounce: the probes read last frame's final light.
  * Inputs: texel_card, card tables and layers, sc_probes, sc_probe_sh, sc_probe_irradiance,
  * sc_probe_pos, sc_indirect_prev; blend.
- * Output out_image: E.rgb (irradiance, W/m^2), w = 1 on surface texels.
+ * Output out_image: E.rgb (irradiance, W/m^2), w = 1 on surface texels interpolated from probes,
+ * 0.5 where no probe could be used (covered texels, e.g. a floor under a wall), 0 elsewhere.
  */
 void main()
 {
@@ -53,5 +54,5 @@ void main()
   }
   vec3 prev = texelFetch(sc_indirect_prev, px, 0).rgb;
   vec3 e = wsum > 0.0 ? E / wsum : prev;
-  imageStore(out_image, px, vec4(mix(prev, e, blend), 1.0));
+  imageStore(out_image, px, vec4(mix(prev, e, blend), wsum > 0.0 ? 1.0 : 0.5));
 }

@@ -1,0 +1,291 @@
+"""Scenes of the GI quality benchmark (bench/quality.py), each built in code from an empty file.
+
+Every scene is pure diffuse (Principled BSDF, Specular IOR Level 0, Roughness 1: a Lambert BSDF
+in Cycles and EEVEE), walls and floors are separate axis-aligned boxes with real thickness (the
+ground of `thin` too), and each has a camera. All numbers live in the dictionaries below.
+
+    cornell  the Cornell box: 2 m interior, 10 cm walls, red left / green right / white others,
+             two white boxes, a small square area light 10 cm under the ceiling (not seen
+             by the camera), black world, camera looking in through the open front
+    window   a closed 4 x 4 x 3 m room, 20 cm walls, albedo 0.7, one 1 x 1 m window in the +Y
+             wall; lit only by a sun outside (black world) through the window onto the floor;
+             camera inside seeing the sun patch and the indirectly lit walls
+    thin     a closed 3 x 3 x 2.2 m room whose walls and roof are 1.5 cm thick (under one 5 cm
+             SDF voxel at the default 20 voxels/m) on a 12 x 12 x 0.5 m ground, bright sun and
+             bright uniform sky; the roof is invisible to camera rays (`visible_camera = False`,
+             it still blocks light) and the camera looks down into the room from above: Cycles
+             shows the interior black, anything lit there is leaked light
+
+`build(name)` replaces the current file with the scene and returns it (renamed to `name`).
+`add_probe_volume(scene)` adds the EEVEE irradiance volume of PROBE_VOLUMES[scene name].
+`CAMERA_HIDDEN` names the objects each scene hides from camera rays (`visible_camera = False`).
+"""
+from __future__ import annotations
+
+import math
+
+# Shared ----------------------------------------------------------------------------------------
+SPECULAR_IOR_LEVEL = 0.0         # no specular layer: a Lambert BSDF
+ROUGHNESS = 1.0
+
+# cornell: interior x, y in [-1, 1], z in [0, 2]; open front at y = -1, camera at -y.
+CORNELL = dict(
+    inner=2.0,                                   # interior edge, m
+    wall=0.1,                                    # wall / floor / ceiling thickness, m
+    white=(0.73, 0.71, 0.68),
+    red=(0.63, 0.065, 0.05),
+    green=(0.14, 0.45, 0.091),
+    light_size=0.5,                              # square area light, m
+    light_power=60.0,                            # W (Blender's area light power)
+    light_z=1.9,                                 # 10 cm (2 default voxels) under the ceiling,
+                                                 # facing down (at 5 cm LUMEN_GI's SDF shadows
+                                                 # still lose most of its direct light)
+    # (name, centre xyz of the base, size xyz, rotation about z in degrees)
+    boxes=(("ShortBox", (0.35, -0.3, 0.0), (0.6, 0.6, 0.6), -17.0),
+           ("TallBox", (-0.35, 0.3, 0.0), (0.6, 0.6, 1.2), 17.0)),
+    camera=(0.0, -3.9, 1.0), target=(0.0, 0.0, 1.0), lens=38.0,
+)
+
+# window: interior x, y in [-2, 2], z in [0, 3]; the window is in the +Y wall.
+WINDOW = dict(
+    inner=(4.0, 4.0, 3.0),
+    wall=0.2,
+    albedo=(0.7, 0.7, 0.7),
+    window_x=(-0.5, 0.5),                        # opening in the +Y wall, m
+    window_z=(1.2, 2.2),
+    sun_strength=20.0,                           # W/m^2 (irradiance facing the sun): walls
+                                                 # ~0.1, well above relMSE's 0.01 floor
+    sun_elevation=35.0,                          # degrees above the horizon
+    sun_azimuth=20.0,                            # degrees from -Y towards -X (light travel)
+    sun_angle=0.0093,                            # angular diameter, rad (Blender's default)
+    camera=(0.8, -1.8, 1.4), target=(-0.05, -0.25, 0.95), lens=16.0,
+)
+
+# thin: interior x, y in [-1.5, 1.5], z in [0, 2.2]; the ground's top is z = 0.
+THIN = dict(
+    inner=(3.0, 3.0, 2.2),
+    wall=0.015,                                  # walls and roof: 1.5 cm, < 1 voxel (5 cm)
+    wall_albedo=(0.7, 0.7, 0.7),
+    wall_sink=0.05,                              # walls start this far inside the ground (sealed)
+    ground=(12.0, 12.0, 0.5),                    # x, y, thickness
+    ground_albedo=(0.5, 0.5, 0.5),
+    sun_strength=4.0,
+    sun_elevation=50.0,
+    sun_azimuth=30.0,
+    sun_angle=0.0093,
+    sky=(0.8, 0.9, 1.0),                         # uniform world radiance (Background strength 1)
+    camera=(3.2, -4.6, 7.4), target=(0.0, 0.1, 0.3), lens=32.0,
+)
+
+# EEVEE irradiance volumes: (centre, half size). Each reaches past the room's walls (10-20 cm
+# beyond their outer faces): measured here, a volume fitted to the interior (or inset) bakes
+# without error but adds no light to the render (a closed room lit by a point light: mean
+# luminance unchanged to 4 digits); reaching past the walls, the same bake adds the bounce light.
+PROBE_VOLUMES = {
+    "cornell": ((0.0, 0.0, 1.0), (1.2, 1.2, 1.2)),
+    "window": ((0.0, 0.0, 1.5), (2.4, 2.4, 1.8)),
+    "thin": ((0.0, 0.0, 1.1), (1.7, 1.7, 1.3)),
+}
+PROBE_RESOLUTION = None          # None: Blender's default probe grid; else (x, y, z)
+
+SCENES = ("cornell", "window", "thin")
+CAMERA_HIDDEN = {"thin": ("roof",)}
+
+
+# Helpers ---------------------------------------------------------------------------------------
+def _new_file(name):
+    import bpy
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.name = name
+    return scene
+
+
+def lambert(name, colour):
+    """A Principled BSDF material that is a pure Lambert BSDF of albedo `colour`."""
+    import bpy
+
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (*colour, 1.0)
+    bsdf.inputs["Specular IOR Level"].default_value = SPECULAR_IOR_LEVEL
+    bsdf.inputs["Roughness"].default_value = ROUGHNESS
+    mat.diffuse_color = (*colour, 1.0)
+    return mat
+
+
+def box(scene, name, lo, hi, material, rotation_z=0.0):
+    """An axis-aligned box object from corner `lo` to corner `hi` (world metres), rotated about
+    the vertical axis through its centre by `rotation_z` degrees; 6 outward quads."""
+    import bpy
+
+    centre = [(a + b) / 2.0 for a, b in zip(lo, hi)]
+    h = [(b - a) / 2.0 for a, b in zip(lo, hi)]
+    verts = [(sx * h[0], sy * h[1], sz * h[2]) for sz in (-1, 1) for sy in (-1, 1) for sx in (-1, 1)]
+    faces = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(verts, [], faces)
+    mesh.update()
+    mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = centre
+    obj.rotation_euler = (0.0, 0.0, math.radians(rotation_z))
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def _aim(obj, target):
+    import mathutils
+
+    obj.rotation_euler = (mathutils.Vector(target) - obj.location).to_track_quat(
+        "-Z", "Y").to_euler()
+
+
+def _camera(scene, location, target, lens):
+    import bpy
+
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(cam)
+    cam.location = location
+    _aim(cam, target)
+    cam.data.lens = lens
+    cam.data.clip_start = 0.05
+    cam.data.clip_end = 100.0
+    scene.camera = cam
+    return cam
+
+
+def _world(scene, colour):
+    import bpy
+
+    world = bpy.data.worlds.new("World")
+    world.color = colour
+    world.use_nodes = True
+    bg = world.node_tree.nodes.get("Background")
+    if bg is not None:
+        bg.inputs["Color"].default_value = (*colour, 1.0)
+        bg.inputs["Strength"].default_value = 1.0
+    scene.world = world
+    return world
+
+
+def _sun(scene, strength, elevation, azimuth, angle):
+    """A sun whose light travels down at `elevation` degrees, horizontally towards -Y turned by
+    `azimuth` degrees towards -X."""
+    import bpy
+    import mathutils
+
+    el, az = math.radians(elevation), math.radians(azimuth)
+    travel = mathutils.Vector((-math.sin(az) * math.cos(el), -math.cos(az) * math.cos(el),
+                               -math.sin(el)))
+    data = bpy.data.lights.new("Sun", 'SUN')
+    data.energy = strength
+    data.angle = angle
+    obj = bpy.data.objects.new("Sun", data)
+    obj.location = -5.0 * travel
+    obj.rotation_euler = travel.to_track_quat("-Z", "Y").to_euler()
+    scene.collection.objects.link(obj)
+    return obj
+
+
+# Scenes ----------------------------------------------------------------------------------------
+def build_cornell():
+    import bpy
+
+    c = CORNELL
+    scene = _new_file("cornell")
+    s, t = c["inner"] / 2.0, c["wall"]
+    top = c["inner"]
+    white, red, green = (lambert("White", c["white"]), lambert("Red", c["red"]),
+                         lambert("Green", c["green"]))
+    box(scene, "Floor", (-s - t, -s, -t), (s + t, s + t, 0.0), white)
+    box(scene, "Ceiling", (-s - t, -s, top), (s + t, s + t, top + t), white)
+    box(scene, "Back", (-s - t, s, -t), (s + t, s + t, top + t), white)
+    box(scene, "Left", (-s - t, -s, -t), (-s, s + t, top + t), red)
+    box(scene, "Right", (s, -s, -t), (s + t, s + t, top + t), green)
+    for name, (x, y, z), (sx, sy, sz), rot in c["boxes"]:
+        box(scene, name, (x - sx / 2, y - sy / 2, z), (x + sx / 2, y + sy / 2, z + sz), white, rot)
+    data = bpy.data.lights.new("Light", 'AREA')
+    data.shape = 'SQUARE'
+    data.size = c["light_size"]
+    data.energy = c["light_power"]
+    light = bpy.data.objects.new("Light", data)
+    light.location = (0.0, 0.0, c["light_z"])        # an area light faces -Z: down
+    light.visible_camera = False                     # no engine but Cycles would show it
+    scene.collection.objects.link(light)
+    _world(scene, (0.0, 0.0, 0.0))
+    _camera(scene, c["camera"], c["target"], c["lens"])
+    return scene
+
+
+def build_window():
+    w = WINDOW
+    scene = _new_file("window")
+    (ix, iy, iz), t = w["inner"], w["wall"]
+    x, y = ix / 2.0, iy / 2.0
+    mat = lambert("Wall", w["albedo"])
+    box(scene, "Floor", (-x - t, -y - t, -t), (x + t, y + t, 0.0), mat)
+    box(scene, "Ceiling", (-x - t, -y - t, iz), (x + t, y + t, iz + t), mat)
+    box(scene, "WallSouth", (-x - t, -y - t, 0.0), (x + t, -y, iz), mat)
+    box(scene, "WallWest", (-x - t, -y, 0.0), (-x, y, iz), mat)
+    box(scene, "WallEast", (x, -y, 0.0), (x + t, y, iz), mat)
+    (wx0, wx1), (wz0, wz1) = w["window_x"], w["window_z"]
+    # the +Y wall around its window: left, right, below, above
+    box(scene, "WallNorthLeft", (-x - t, y, 0.0), (wx0, y + t, iz), mat)
+    box(scene, "WallNorthRight", (wx1, y, 0.0), (x + t, y + t, iz), mat)
+    box(scene, "WallNorthBelow", (wx0, y, 0.0), (wx1, y + t, wz0), mat)
+    box(scene, "WallNorthAbove", (wx0, y, wz1), (wx1, y + t, iz), mat)
+    _sun(scene, w["sun_strength"], w["sun_elevation"], w["sun_azimuth"], w["sun_angle"])
+    _world(scene, (0.0, 0.0, 0.0))
+    _camera(scene, w["camera"], w["target"], w["lens"])
+    return scene
+
+
+def build_thin():
+    th = THIN
+    scene = _new_file("thin")
+    (ix, iy, iz), t = th["inner"], th["wall"]
+    x, y = ix / 2.0, iy / 2.0
+    gx, gy, gz = th["ground"]
+    ground = lambert("Ground", th["ground_albedo"])
+    wall = lambert("ThinWall", th["wall_albedo"])
+    box(scene, "Ground", (-gx / 2, -gy / 2, -gz), (gx / 2, gy / 2, 0.0), ground)
+    z0 = -th["wall_sink"]
+    box(scene, "WallSouth", (-x - t, -y - t, z0), (x + t, -y, iz), wall)
+    box(scene, "WallNorth", (-x - t, y, z0), (x + t, y + t, iz), wall)
+    box(scene, "WallWest", (-x - t, -y, z0), (-x, y, iz), wall)
+    box(scene, "WallEast", (x, -y, z0), (x + t, y, iz), wall)
+    roof = box(scene, "roof", (-x - t, -y - t, iz), (x + t, y + t, iz + t), wall)
+    roof.visible_camera = False           # blocks light, not seen: the camera looks inside
+    _sun(scene, th["sun_strength"], th["sun_elevation"], th["sun_azimuth"], th["sun_angle"])
+    _world(scene, th["sky"])
+    _camera(scene, th["camera"], th["target"], th["lens"])
+    return scene
+
+
+BUILDERS = {"cornell": build_cornell, "window": build_window, "thin": build_thin}
+
+
+def build(name):
+    """Replace the current file with scene `name` (one of SCENES) and return it."""
+    if name not in BUILDERS:
+        raise KeyError(f"unknown scene {name!r}; known: {', '.join(SCENES)}")
+    return BUILDERS[name]()
+
+
+def add_probe_volume(scene, resolution=PROBE_RESOLUTION):
+    """The EEVEE irradiance volume (light probe volume object) of PROBE_VOLUMES[scene.name]:
+    the probe's unit cube scaled to the half size. Returns the object."""
+    import bpy
+
+    centre, half = PROBE_VOLUMES[scene.name]
+    data = bpy.data.lightprobes.new("IrradianceVolume", 'VOLUME')
+    if resolution is not None:
+        data.resolution_x, data.resolution_y, data.resolution_z = resolution
+    obj = bpy.data.objects.new("IrradianceVolume", data)
+    obj.location = centre
+    obj.scale = half
+    scene.collection.objects.link(obj)
+    return obj
