@@ -5,8 +5,10 @@ Scene: a 6 x 6 m floor, a cube, a UV sphere, a cylinder and a monkey, a sun and 
 baked with bpy.ops.lumen.bake. Each engine renders `--size` x `--size` with bpy.ops.render.render:
 one warm-up render (shader compilation, first uploads), then `--repeat` timed renders; the median
 is printed. EEVEE keeps its default settings except 1 render sample (a viewport-like frame).
-Our engine's steady state re-uploads nothing (scene_state.SceneState) and runs G-buffer + direct
-light with SDF shadows, as view_draw does.
+Our engine's steady state re-uploads nothing (scene_state.SceneState) and runs one frame of
+everything a viewport redraw runs: G-buffer, direct light with SDF shadows and one GI iteration
+(surface cache direct + radiosity probes + screen probes; `--quality`, render_frames = bounces = 1,
+so F12 does exactly one GI frame). A converged F12 render is render_frames + bounces - 1 of those.
 
     ./lumen bench frame_time [--size 256] [--repeat 5]
 """
@@ -79,6 +81,7 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--quality", default="MEDIUM", choices=("OFF", "LOW", "MEDIUM", "HIGH"))
     args = ap.parse_args()
 
     import tempfile
@@ -97,12 +100,18 @@ def main():
         from lumen_gi.gpu_shaders import engine
 
         scene.render.engine = "LUMEN_GI"
+        scene.lumen.gi_quality = args.quality
+        scene.lumen.render_frames = 1
+        scene.lumen.bounces = 1
         ours = time_renders(args.repeat)
         R = engine.LAST_RENDER
         if "error" in R:
             raise SystemExit(R.get("traceback", R["error"]))
         breakdown = {k: round(R[k] * 1000, 1) for k in ("extract_seconds", "sync_seconds",
-                                                         "gbuffer_seconds", "direct_seconds")}
+                                                         "gbuffer_seconds", "direct_seconds")
+                     if k in R}
+        if "gi_timings" in R:
+            breakdown.update({"gi_" + k: round(v * 1000, 1) for k, v in R["gi_timings"].items()})
         eevee_id = [i.identifier for i in
                     bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
                     if i.identifier.startswith("BLENDER_EEVEE")][0]
