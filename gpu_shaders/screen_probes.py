@@ -111,7 +111,8 @@ class ScreenProbes:
                                       "probe_sh"),
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('VEC3', 'sky'),
                                   ('INT', 'frame'), ('FLOAT', 't_max')),
-                            libs=("sh_lib.glsl", "probe_interp_lib.glsl") + GI_LIBS,
+                            libs=("gbuffer_lib.glsl", "sh_lib.glsl", "probe_interp_lib.glsl")
+                            + GI_LIBS,
                             scene=True, surface_cache=True, global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
@@ -163,7 +164,8 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     sh = compute.shader("pixel_gather", samplers=("gbuf_position", "gbuf_normal"),
                         push=(('VEC3', 'cam_pos'), ('VEC3', 'sky'), ('INT', 'rays'),
                               ('INT', 'frame'), ('FLOAT', 't_max')),
-                        libs=GI_LIBS, scene=True, surface_cache=True, global_sdf=True)
+                        libs=("gbuffer_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
+                        global_sdf=True)
     resources.bind(sh)
     cache.bind(sh)
     gsdf.bind(sh)

@@ -226,7 +226,8 @@ class SurfaceCache:
              name: str = "final") -> np.ndarray:
         """surface_cache_view: float32 [h, w, 4], the surface cache's `name` layer sampled at every
         G-buffer pixel through the cards (w: card weight, 0 where no card sees the pixel)."""
-        sh = pass_shader("surface_cache_view", (), ("gbuf_position", "gbuf_normal"),
+        sh = pass_shader("surface_cache_view", ("gbuffer_lib.glsl",),
+                         ("gbuf_position", "gbuf_normal"),
                          (('VEC3', 'cam_pos'),))
         source = self.final if name == "final" else self.layer(resources, name)
         resources.bind(sh)
@@ -261,7 +262,8 @@ def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False)
     """A compute shader over the lighting atlas (GROUP x GROUP): the SDF and surface-cache
     samplers, `texel_card`, an RGBA32F `out_image`, extra 2D `samplers`, `push` constants
     ((type, name)) and more write-only RGBA32F `images`, with gsdf the global SDF's samplers and
-    constants, then sdf_lib, sdf_ray_lib, surface_cache_lib, `libs` and glsl/<name>.comp.glsl."""
+    constants, then sdf_lib, sdf_ray_lib, surface_cache_lib, surface_cache_texel_lib, `libs` and
+    glsl/<name>.comp.glsl."""
     if name not in _SHADERS:
         info = gpu.types.GPUShaderCreateInfo()
         info.local_group_size(GROUP, GROUP, 1)
@@ -277,8 +279,8 @@ def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False)
             info.image(k, 'RGBA32F', 'FLOAT_2D', image, qualifiers={'WRITE'})
         for kind, pname in push:
             info.push_constant(kind, pname)
-        src = [glsl("sdf_lib.glsl"), glsl("sdf_ray_lib.glsl"), glsl("surface_cache_lib.glsl")] \
-            + [glsl(n) for n in libs]
+        src = [glsl(n) for n in ("sdf_lib.glsl", "sdf_ray_lib.glsl", "surface_cache_lib.glsl",
+                                 "surface_cache_texel_lib.glsl") + tuple(libs)]
         info.compute_source("\n".join(src + [glsl(name + ".comp.glsl")]))
         _SHADERS[name] = gpu.shader.create_from_info(info)
     return _SHADERS[name]

@@ -14,19 +14,15 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  vec4 pos = texelFetch(gbuf_position, px, 0);
-  if (pos.w < 0.5) {
+  vec3 p, n;
+  if (!gbuf_surface(px, cam_pos, p, n)) {
     imageStore(out_image, px, vec4(0.0, 0.0, 0.0, -1.0));
     return;
   }
-  vec3 n = normalize(texelFetch(gbuf_normal, px, 0).xyz);
-  if (dot(n, cam_pos - pos.xyz) < 0.0) {
-    n = -n;
-  }
   float h;
   int obj;
-  sdf_scene(pos.xyz, h, obj);
-  vec3 o = pos.xyz + n * max(gi_object_voxel(max(obj, 0)), 1e-3);
+  sdf_scene(p, h, obj);
+  vec3 o = p + n * max(gi_object_voxel(max(obj, 0)), 1e-3);
   uint seed = pcg_hash(uint(px.x) + 7919u * uint(px.y)) ^ pcg_hash(uint(frame) + 0x2545f491u);
   vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
   vec3 sum = vec3(0.0);

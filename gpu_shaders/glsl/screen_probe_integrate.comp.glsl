@@ -19,14 +19,10 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  vec4 pos = texelFetch(gbuf_position, px, 0);
-  if (pos.w < 0.5) {
+  vec3 p, n;
+  if (!gbuf_surface(px, cam_pos, p, n)) {
     imageStore(out_image, px, vec4(0.0, 0.0, 0.0, -1.0));
     return;
-  }
-  vec3 n = normalize(texelFetch(gbuf_normal, px, 0).xyz);
-  if (dot(n, cam_pos - pos.xyz) < 0.0) {
-    n = -n;
   }
   ivec2 grid = textureSize(probe_info, 0);
   vec2 g = (vec2(px) + 0.5) / float(probe_tile) - 0.5;
@@ -37,18 +33,18 @@ void main()
   vec4 valid;
   float h;
   int obj;
-  sdf_scene(pos.xyz, h, obj);
+  sdf_scene(p, h, obj);
   float voxel = gi_object_voxel(max(obj, 0));
   for (int k = 0; k < 4; k++) {
     q[k] = clamp(q[k], ivec2(0), grid - 1);
     info[k] = texelFetch(probe_info, q[k], 0);
-    valid[k] = info[k].w > 0.0 && gi_visible(pos.xyz, n, info[k].xyz,
+    valid[k] = info[k].w > 0.0 && gi_visible(p, n, info[k].xyz,
                                              texelFetch(probe_normal, q[k], 0).xyz, voxel) ? 1.0 : 0.0;
   }
-  float depth = max(distance(pos.xyz, cam_pos), 1e-4);
+  float depth = max(distance(p, cam_pos), 1e-4);
   float ok;
   vec4 w = probe_corner_weights(f, info[0].xyz, info[1].xyz, info[2].xyz, info[3].xyz, valid,
-                                vec4(n, dot(n, pos.xyz)), depth, ok);
+                                vec4(n, dot(n, p)), depth, ok);
   if (ok < 0.5) {
     vec4 bw = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
     bw *= valid;
@@ -58,7 +54,7 @@ void main()
        * FALLBACK_RAYS cosine rays (the lecture refines with smaller probes; a pixel is the limit). */
       uint seed = pcg_hash(uint(px.x) + 7919u * uint(px.y)) ^ pcg_hash(uint(frame) + 0x2545f491u);
       vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
-      vec3 o = pos.xyz + n * max(voxel, 1e-3);
+      vec3 o = p + n * max(voxel, 1e-3);
       vec3 sum = vec3(0.0);
       for (int i = 0; i < FALLBACK_RAYS; i++) {
         vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(FALLBACK_RAYS)) + rot), n);

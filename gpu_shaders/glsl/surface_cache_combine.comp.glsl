@@ -12,9 +12,9 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  int row = int(texelFetch(texel_card, px, 0).x);
-  vec3 pl, nl, albedo, emissive;
-  if (row < 0 || !sc_texel_surface(row, px - ivec2(sc_card(row, 0).zw + 0.5), pl, nl, albedo, emissive)) {
+  int row, obj;
+  vec3 p, n, albedo, emissive;
+  if (!sc_lighting_texel(px, row, obj, p, n, albedo, emissive)) {
     imageStore(out_image, px, vec4(0.0));
     return;
   }

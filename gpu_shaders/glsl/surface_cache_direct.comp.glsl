@@ -11,24 +11,12 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  int row = int(texelFetch(texel_card, px, 0).x);
-  vec3 pl, nl, albedo, emissive;
-  if (row < 0) {
+  int row, obj;
+  vec3 p, n, albedo, emissive;
+  if (!sc_lighting_texel(px, row, obj, p, n, albedo, emissive)) {
     imageStore(out_image, px, vec4(0.0));
     return;
   }
-  vec4 t0 = sc_card(row, 0);
-  int obj = int(t0.x + 0.5);
-  if (!sc_texel_surface(row, px - ivec2(t0.zw + 0.5), pl, nl, albedo, emissive)) {
-    imageStore(out_image, px, vec4(0.0));
-    return;
-  }
-  /* Local to world: the inverse of the object table's world-to-local rows. */
-  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
-                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
-  mat4 l2w = inverse(w2l);
-  vec3 p = (l2w * vec4(pl, 1.0)).xyz;
-  vec3 n = normalize(transpose(mat3(w2l)) * nl);
   vec3 E = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
     E += light_irradiance(i, p, n, light_samples, light_rotation(px));

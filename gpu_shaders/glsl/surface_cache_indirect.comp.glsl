@@ -17,15 +17,12 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  int row = int(texelFetch(texel_card, px, 0).x);
-  vec3 p, n;
-  int obj;
-  vec3 pl, nl, albedo, emissive;
-  if (row < 0 || !sc_texel_surface(row, px - ivec2(sc_card(row, 0).zw + 0.5), pl, nl, albedo, emissive)) {
+  int row, obj;
+  vec3 p, n, albedo, emissive;
+  if (!sc_lighting_texel(px, row, obj, p, n, albedo, emissive)) {
     imageStore(out_image, px, vec4(0.0));
     return;
   }
-  scp_surface(px, row, p, n, obj);
   ivec2 grid = textureSize(sc_probes, 0);
   vec2 g = (vec2(px) + 0.5) / float(SCP_SIZE) - 0.5;
   ivec2 i0 = ivec2(floor(g));

@@ -22,21 +22,18 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  int row = int(texelFetch(texel_card, px, 0).x);
-  vec3 pl, nl, albedo, emissive;
-  if (row < 0 || !sc_texel_surface(row, px - ivec2(sc_card(row, 0).zw + 0.5), pl, nl, albedo, emissive)) {
+  int row, obj;
+  vec3 p, n, albedo, emissive;
+  if (!sc_lighting_texel(px, row, obj, p, n, albedo, emissive)) {
     imageStore(out_image, px, vec4(0.0));
     return;
   }
-  int obj = int(sc_card(row, 0).x + 0.5);
-  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
-                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
   vec3 v;
   if (layer_mode == 0) {
     v = albedo;
   }
   else if (layer_mode == 1) {
-    v = normalize(transpose(mat3(w2l)) * nl) * 0.5 + 0.5;
+    v = n * 0.5 + 0.5;
   }
   else if (layer_mode == 2) {
     v = texelFetch(sc_direct, px, 0).rgb / PI;
@@ -45,7 +42,7 @@ void main()
     v = texelFetch(sc_indirect, px, 0).rgb / PI;
   }
   else if (layer_mode == 4) {
-    v = (inverse(w2l) * vec4(pl, 1.0)).xyz;
+    v = p;
   }
   else if (layer_mode == 5) {
     v = sc_row_colour(row);

@@ -33,6 +33,13 @@ ivec2 sc_instance_range(int obj)
   return ivec2(r.xy + 0.5);
 }
 
+/* World-to-local matrix of object obj (the object table's first three rows). */
+mat4 sc_object_w2l(int obj)
+{
+  return transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
+                        sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
+}
+
 /* Surface of texel ij (0..w-1, 0..h-1) of card row `row`, in the mesh's local space; false where
  * the card saw nothing. */
 bool sc_texel_surface(int row, ivec2 ij, out vec3 p, out vec3 n, out vec3 albedo, out vec3 emissive)
@@ -157,7 +164,6 @@ vec3 sc_sample_world(int obj, vec3 pw, vec3 dir, out float weight)
   vec3 pl = sdf_world_to_local(obj, pw);
   float h = sdf_object_texel(obj, 4).w;
   vec3 nl = sdf_mesh_normal_local(obj, pl, 0.5 * h);
-  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
-                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
+  mat4 w2l = sc_object_w2l(obj);
   return sc_sample_local(obj, pl, nl, 1.0 * h, inverse(w2l), gi_object_voxel(obj), weight);
 }

@@ -22,8 +22,7 @@ void scp_surface(ivec2 texel, int row, out vec3 p, out vec3 n, out int obj)
   vec4 t0 = sc_card(row, 0);
   sc_texel_surface(row, texel - ivec2(t0.zw + 0.5), pl, nl, albedo, emissive);
   obj = int(t0.x + 0.5);
-  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
-                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
+  mat4 w2l = sc_object_w2l(obj);
   p = (inverse(w2l) * vec4(pl, 1.0)).xyz;
   n = normalize(transpose(mat3(w2l)) * nl);
 }

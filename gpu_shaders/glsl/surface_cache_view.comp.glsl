@@ -12,21 +12,16 @@ void main()
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
-  vec4 pos = texelFetch(gbuf_position, px, 0);
-  if (pos.w < 0.5) {
+  vec3 p, n;
+  if (!gbuf_surface(px, cam_pos, p, n)) {
     imageStore(out_image, px, vec4(0.0, 0.0, 0.0, -1.0));
     return;
   }
-  vec3 n = normalize(texelFetch(gbuf_normal, px, 0).xyz);
-  if (dot(n, cam_pos - pos.xyz) < 0.0) {
-    n = -n;
-  }
   float h;
   int obj;
-  sdf_scene(pos.xyz, h, obj);
-  mat4 w2l = transpose(mat4(sdf_object_texel(obj, 0), sdf_object_texel(obj, 1),
-                            sdf_object_texel(obj, 2), vec4(0.0, 0.0, 0.0, 1.0)));
-  vec3 pl = (w2l * vec4(pos.xyz, 1.0)).xyz;
+  sdf_scene(p, h, obj);
+  mat4 w2l = sc_object_w2l(obj);
+  vec3 pl = (w2l * vec4(p, 1.0)).xyz;
   vec3 nl = normalize(transpose(inverse(mat3(w2l))) * n);
   float weight;
   vec3 v = sc_sample_local(obj, pl, nl, sdf_object_texel(obj, 4).w, inverse(w2l),
