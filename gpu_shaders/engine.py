@@ -206,8 +206,9 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         gi_info = dict(gi_seconds=gi_out["timings"]["total"], gi_timings=gi_out["timings"],
                        gi_iterations=gi_out["iterations"], gi_converged=gi_out["converged"],
                        gi_settings=gi_cfg.__dict__.copy())
-        LAST_RENDER["indirect_irradiance"] = np.asarray(
-            gi_out["texture"].read().to_list(), np.float32).reshape(height, width, 4)
+        if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
+            LAST_RENDER["indirect_irradiance"] = np.asarray(
+                gi_out["texture"].read().to_list(), np.float32).reshape(height, width, 4)
     t5 = time.perf_counter()
     MEMORY[scene.name] = state.stats()
     LAST_RENDER.update(
