@@ -257,8 +257,8 @@ def _debug_image(view, state, gbuf, cam_pos, width, height, combined, direct, in
         shown = state.surface_cache.view(state.resources, gbuf, cam_pos, width, height,
                                          CARD_VIEWS[view])
         shown[shown[..., 3] < 0] = 0.0
-    elif view == "PROBES" and gi_cfg.enabled:
-        shown = _probe_atlas_image(state, width, height)
+    elif view == "PROBES" and gi_cfg.enabled and "filtered" in state.probes.textures:
+        shown = _probe_atlas_image(state, width, height)   # (none with the per-pixel gather)
     elif view == "PROBE_FALLBACK" and gi_cfg.enabled:
         w = LAST_RENDER["indirect_irradiance"][..., 3]
         shown = np.zeros((height, width, 4), np.float32)
