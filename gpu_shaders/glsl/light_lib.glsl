@@ -41,9 +41,9 @@ float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
     float hv;
     float d = sdf_scene(o + dir * t, hv, nearest);
     if (leaving) {
-      /* leaving means the field rises at a quarter of the distance travelled or more: the flat
+      /* leaving means the field rises by a tenth of the distance travelled or more: the flat
        * field inside a wall thinner than a voxel does not, so such a wall still occludes */
-      if (d >= last + 0.25 * (t - t_last) && d < (THIN_VOXELS + 0.5) * hv) {
+      if (d >= last + 0.1 * (t - t_last) && d < (THIN_VOXELS + 0.5) * hv) {
         last = d;
         t_last = t;
         t += max(0.5 * d, 0.2 * hv);
