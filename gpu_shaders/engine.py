@@ -151,7 +151,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
     Returns {pass name: float32 [h, w, C]} and fills LAST_RENDER."""
     from ..operators.extract import extract_scene
     from ..operators.lights import light_table, world_colour
-    from . import composite, direct_light, gbuffer, gi, gi_settings
+    from . import composite, compute, direct_light, gbuffer, gi, gi_settings
 
     t0 = time.perf_counter()
     bake, source = scene_bake(scene)
@@ -207,8 +207,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
                        gi_iterations=gi_out["iterations"], gi_converged=gi_out["converged"],
                        gi_settings=gi_cfg.__dict__.copy())
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
-            LAST_RENDER["indirect_irradiance"] = np.asarray(
-                gi_out["texture"].read().to_list(), np.float32).reshape(height, width, 4)
+            LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])
     t5 = time.perf_counter()
     MEMORY[scene.name] = state.stats()
     LAST_RENDER.update(
@@ -274,9 +273,10 @@ def _debug_image(view, state, gbuf, cam_pos, width, height, combined, direct, in
 
 def _probe_atlas_image(state, width, height):
     """The probe radiance atlas (one probe_res^2 tile per probe) scaled to the image size."""
-    atlas = np.asarray(state.probes.textures["filtered"].read().to_list(), np.float32)
+    from . import compute
+
     t = state.probes.textures["filtered"]
-    atlas = atlas.reshape(t.height, t.width, 4)
+    atlas = compute.read(t)
     ys = np.minimum((np.arange(height) * t.height) // height, t.height - 1)
     xs = np.minimum((np.arange(width) * t.width) // width, t.width - 1)
     img = atlas[ys][:, xs].copy()

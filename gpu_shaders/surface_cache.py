@@ -26,11 +26,11 @@ import time
 import gpu
 import numpy as np
 
+from . import compute
 from .card_packing import CARD_TEXELS, PackedCards, pack_cards
-from .resources import SceneResources, float_buffer, glsl
+from .resources import SceneResources, float_buffer
 
 GROUP = 8
-_SHADERS = {}
 
 
 def _tex(size, fmt, data=None):
@@ -141,7 +141,7 @@ class SurfaceCache:
         rays, probes = _tex((gw * 4, gh * 4), 'RGBA32F'), _tex((gw, gh), 'RGBA32F')
         probe_pos = _tex((gw, gh), 'RGBA32F')
         sh = pass_shader("surface_cache_probe_trace",
-                         ("global_sdf_lib.glsl",) + probe_libs + ("gi_trace_lib.glsl",), (),
+                         probe_libs + ("gi_trace_lib.glsl",), (),
                          (('VEC3', 'sky'), ('INT', 'frame'), ('FLOAT', 't_max')),
                          images=("probe_out", "probe_pos_out"), gsdf=True)
         resources.bind(sh)
@@ -240,13 +240,11 @@ class SurfaceCache:
         out = _tex((width, height), 'RGBA32F')
         sh.image("out_image", out)
         gpu.compute.dispatch(sh, -(-width // GROUP), -(-height // GROUP), 1)
-        return np.asarray(out.read().to_list(), np.float32).reshape(height, width, 4)
+        return compute.read(out)
 
     def read_layer(self, resources: SceneResources, name: str) -> np.ndarray:
         """float32 [h, w, 4] of a LAYERS view of the lighting atlas."""
-        lw, lh = self.packed.lighting_size
-        tex = self.layer(resources, name)
-        return np.asarray(tex.read().to_list(), np.float32).reshape(lh, lw, 4)
+        return compute.read(self.layer(resources, name))
 
     def _dispatch(self, sh):
         lw, lh = self.packed.lighting_size
@@ -254,33 +252,15 @@ class SurfaceCache:
 
     def read(self, name: str) -> np.ndarray:
         """float32 [h, w, 4] of a lighting texture ('direct', 'indirect', 'final')."""
-        lw, lh = self.packed.lighting_size
-        return np.asarray(getattr(self, name).read().to_list(), np.float32).reshape(lh, lw, 4)
+        return compute.read(getattr(self, name))
 
 
 def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False):
-    """A compute shader over the lighting atlas (GROUP x GROUP): the SDF and surface-cache
-    samplers, `texel_card`, an RGBA32F `out_image`, extra 2D `samplers`, `push` constants
-    ((type, name)) and more write-only RGBA32F `images`, with gsdf the global SDF's samplers and
-    constants, then sdf_lib, sdf_ray_lib, surface_cache_lib, surface_cache_texel_lib, `libs` and
-    glsl/<name>.comp.glsl."""
-    if name not in _SHADERS:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.local_group_size(GROUP, GROUP, 1)
-        slot = SurfaceCache.declare(info, SceneResources.declare(info, 0))
-        for sampler in ("texel_card",) + tuple(samplers):
-            info.sampler(slot, 'FLOAT_2D', sampler)
-            slot += 1
-        if gsdf:
-            from .global_sdf import GlobalSDF
-            slot = GlobalSDF.declare(info, slot)
-        info.image(0, 'RGBA32F', 'FLOAT_2D', 'out_image', qualifiers={'WRITE'})
-        for k, image in enumerate(images, start=1):
-            info.image(k, 'RGBA32F', 'FLOAT_2D', image, qualifiers={'WRITE'})
-        for kind, pname in push:
-            info.push_constant(kind, pname)
-        src = [glsl(n) for n in ("sdf_lib.glsl", "sdf_ray_lib.glsl", "surface_cache_lib.glsl",
-                                 "surface_cache_texel_lib.glsl") + tuple(libs)]
-        info.compute_source("\n".join(src + [glsl(name + ".comp.glsl")]))
-        _SHADERS[name] = gpu.shader.create_from_info(info)
-    return _SHADERS[name]
+    """compute.shader for a surface-cache pass: the SDF and surface-cache samplers, `texel_card`
+    and the extra 2D `samplers`, an RGBA32F `out_image` and more write-only `images`, `push`
+    constants ((type, name)), with gsdf the global SDF's; surface_cache_texel_lib.glsl and `libs`
+    before glsl/<name>.comp.glsl."""
+    return compute.shader(name, samplers=("texel_card",) + tuple(samplers),
+                          images=("out_image",) + tuple(images), push=push,
+                          libs=("surface_cache_texel_lib.glsl",) + tuple(libs), scene=True,
+                          surface_cache=True, global_sdf=gsdf)
