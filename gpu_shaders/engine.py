@@ -138,6 +138,14 @@ def debug_view(scene) -> str:
     return view
 
 
+def gpu_backend() -> str:
+    """'OPENGL', 'VULKAN', 'METAL' (...) of the running Blender, 'unknown' where it cannot say."""
+    import gpu
+
+    get = getattr(gpu.platform, "backend_type_get", None)
+    return str(get()) if get else "unknown"
+
+
 def mesh_matrices(depsgraph) -> dict:
     """{object name: world 4x4} of the evaluated mesh objects (the trace views' placement)."""
     return {ob.original.name: np.array(ob.matrix_world, np.float64)
@@ -298,6 +306,7 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         width = max(1, int(scene.render.resolution_x * scale))
         height = max(1, int(scene.render.resolution_y * scale))
         LAST_RENDER.clear()
+        LAST_RENDER["gpu_backend"] = gpu_backend()
         layer = depsgraph.view_layer.name
         for name, channels, chan_id, _ in PASSES:
             self.add_pass(name, channels, chan_id, layer=layer)

@@ -20,9 +20,16 @@ import gpu
 import numpy as np
 
 from .global_sdf_ref import BAND_VOXELS, LEVELS, level_origin, level_voxel
-from .resources import SceneResources, glsl
+from .resources import SceneResources, float_buffer, glsl
 
 GROUP = 4
+UBO_SLOT = 0   # GlobalSDFParams' binding; no other pass library declares a uniform block
+PARAMS_TYPEDEF = """
+struct GlobalSDFParams {
+  vec4 origin[4]; /* xyz: the level's first world cell (integers), w: its voxel size (m) */
+  vec4 band;      /* x: values are clamped to min(d, band.x * voxel) per level */
+};
+"""
 BYTES = {"R16F": 2, "R32F": 4}
 _SHADERS = {}
 
@@ -79,6 +86,7 @@ class GlobalSDF:
         self.dirty = [True] * levels             # objects changed since the level's last build
         self.last_update = [None] * levels       # frame of the last build/scroll
         self.log = []                            # (frame, level, 'build' | 'scroll', seconds)
+        self._ubo, self._ubo_data = None, None   # GlobalSDFParams of the bound origins
 
     # --- building --------------------------------------------------------------------------
     def set_resources(self, resources: SceneResources):
@@ -151,21 +159,31 @@ class GlobalSDF:
     # --- sampling from other passes ----------------------------------------------------------
     @staticmethod
     def declare(info, first_slot: int) -> int:
-        """Declare global_sdf_lib.glsl's samplers and push constants; returns the next free slot."""
+        """Declare global_sdf_lib.glsl's samplers and its uniform block; returns the next free
+        sampler slot. The level origins live in a uniform block, not push constants: 80 bytes
+        of them would leave a pass too little of Vulkan's guaranteed 128 push-constant bytes."""
         for k in range(LEVELS):
             info.sampler(first_slot + k, 'FLOAT_3D', f'gsdf_level{k}')
-        for k in range(LEVELS):
-            info.push_constant('VEC4', f'gsdf_origin{k}')
-        info.push_constant('FLOAT', 'gsdf_band_voxels')
+        info.typedef_source(PARAMS_TYPEDEF)
+        info.uniform_buf(UBO_SLOT, "GlobalSDFParams", "gsdf")
         return first_slot + LEVELS
+
+    def params(self) -> np.ndarray:
+        """float32 [LEVELS + 1, 4]: GlobalSDFParams in std140 (origin[k] = cell xyz, voxel; band)."""
+        rows = [(*map(float, self.origins[k]), self.voxels[k]) for k in range(LEVELS)]
+        return np.array(rows + [(self.band_voxels, 0.0, 0.0, 0.0)], np.float32)
 
     def bind(self, shader):
         if any(o is None for o in self.origins):
             raise RuntimeError("GlobalSDF.bind before every level was built (call update first)")
         for k, tex in enumerate(self.textures):
             shader.uniform_sampler(f'gsdf_level{k}', tex)
-            shader.uniform_float(f'gsdf_origin{k}', (*map(float, self.origins[k]), self.voxels[k]))
-        shader.uniform_float('gsdf_band_voxels', self.band_voxels)
+        params = self.params()
+        if self._ubo is None or not np.array_equal(params, self._ubo_data):
+            # a new block when the origins move (at most once a frame), not one per pass
+            self._ubo = gpu.types.GPUUniformBuf(float_buffer(params))
+            self._ubo_data = params
+        shader.uniform_block("gsdf", self._ubo)
 
 
 # --- the hybrid trace pass (tests and the engine's future global trace) -----------------------
@@ -250,7 +268,6 @@ def sample_points(gsdf: GlobalSDF, points) -> dict:
         info.compute_source(glsl("global_sdf_lib.glsl") + "\n" + SAMPLE_MAIN)
         _SHADERS["sample"] = gpu.shader.create_from_info(info)
     sh = _SHADERS["sample"]
-    from .resources import float_buffer
 
     p = np.asarray(points, np.float32).reshape(-1, 3)
     count = len(p)

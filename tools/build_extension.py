@@ -3,7 +3,8 @@
     .venv/bin/python tools/build_extension.py [--output-dir dist] [--split-platforms]
 
 1. Downloads every wheel that blender_manifest.toml lists and wheels/ lacks (pip, binary only,
-   no dependencies, for the wheel's own platform and CPython 3.11).
+   no dependencies, for the wheel's own platform and CPython version: 3.11 for Blender 4.2 to
+   5.0, 3.13 for Blender 5.1 and later).
 2. Runs Blender's own extension tool (`blender_ext.py`, shipped inside the bpy wheel; the same
    code as `blender --command extension`) to validate the manifest and build the zip.
 3. Prints the zip path(s) last, one per line.
@@ -21,7 +22,6 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 EXIT_DOWNLOAD_FAILED = 3
-PYTHON_VERSION = "3.11"   # Blender 4.2 .. 5.0 bundle CPython 3.11
 
 
 def manifest() -> dict:
@@ -38,6 +38,14 @@ def pip_platform(wheel_name: str) -> str:
     return tags[-1]
 
 
+def python_version(wheel_name: str) -> str:
+    """The --python-version pip needs for this wheel file: its cpXY tag (cp313 -> 3.13)."""
+    tag = wheel_name[:-len(".whl")].split("-")[-3]
+    if not (tag.startswith("cp3") and tag[3:].isdigit()):
+        raise ValueError(f"{wheel_name}: expected a CPython 3 tag such as cp311, found {tag!r}")
+    return f"3.{tag[3:]}"
+
+
 def download_wheels(data: dict) -> list[Path]:
     paths = []
     for rel in data.get("wheels", []):
@@ -47,7 +55,7 @@ def download_wheels(data: dict) -> list[Path]:
             continue
         name, version = path.name.split("-")[:2]
         cmd = [sys.executable, "-m", "pip", "download", "--only-binary=:all:", "--no-deps",
-               "--platform", pip_platform(path.name), "--python-version", PYTHON_VERSION,
+               "--platform", pip_platform(path.name), "--python-version", python_version(path.name),
                f"{name}=={version}", "-d", str(path.parent)]
         print("+", " ".join(cmd), flush=True)
         proc = subprocess.run(cmd)

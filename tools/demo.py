@@ -35,15 +35,25 @@ def load_addon(name: str = "lumen_gi"):
     return module
 
 
-def build_demo_scene(*, sphere_segments: int = 16, sphere_rings: int = 8):
-    """Replace the current file with the demo scene; returns the scene."""
+def build_demo_scene(*, sphere_segments: int = 16, sphere_rings: int = 8, factory_reset: bool = True):
+    """Replace the current file with the demo scene; returns the scene. factory_reset=False
+    empties the current scene instead (factory settings would also reset the preferences and
+    so disable an installed extension)."""
     import bpy
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if factory_reset:
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+    else:
+        for collection in (bpy.data.objects, bpy.data.meshes, bpy.data.lights, bpy.data.cameras,
+                           bpy.data.materials, bpy.data.images):
+            for block in list(collection):
+                collection.remove(block)
     scene = bpy.context.scene
 
     def material(name, base=(0.8, 0.8, 0.8), emission=(0.0, 0.0, 0.0), strength=0.0, image=None):
         mat = bpy.data.materials.new(name)
+        if mat.node_tree is None:   # Blender 4.2 to 4.5 start without nodes (5.0 on: always)
+            mat.use_nodes = True
         bsdf = mat.node_tree.nodes["Principled BSDF"]
         bsdf.inputs["Base Color"].default_value = (*base, 1.0)
         bsdf.inputs["Emission Color"].default_value = (*emission, 1.0)

@@ -2,8 +2,9 @@
  *
  * Resources (declared by GlobalSDF.declare, bound by GlobalSDF.bind, gpu_shaders/global_sdf.py):
  *   sampler3D gsdf_level0..3   R16F/R32F, N^3, toroidally addressed (see global_sdf_build.comp.glsl)
- *   vec4      gsdf_origin0..3  xyz: the level's first world cell (integers), w: its voxel size (m)
- *   float     gsdf_band_voxels values are clamped to min(d, band_voxels * voxel) per level
+ *   GlobalSDFParams gsdf  a uniform block: gsdf.origin[k].xyz the level's first world cell
+ *                         (integers), .w its voxel size (m); values are clamped to
+ *                         min(d, gsdf.band.x * voxel) per level
  * trace_hybrid needs sdf_lib.glsl (the mesh SDFs) included before this file; without it only the
  * sampling functions are defined. All reads are texelFetch; the trilinear
  * filter is done here in float32 (the toroidal wrap rules out the hardware filter).
@@ -21,10 +22,7 @@ ivec3 gsdf_imod(ivec3 a, int n)
 
 vec4 gsdf_origin(int level)
 {
-  if (level == 0) { return gsdf_origin0; }
-  if (level == 1) { return gsdf_origin1; }
-  if (level == 2) { return gsdf_origin2; }
-  return gsdf_origin3;
+  return gsdf.origin[level];
 }
 
 float gsdf_fetch(int level, ivec3 t)
@@ -85,7 +83,7 @@ float global_sdf_sample(vec3 p, out int level, out float voxel)
       level = k;
       voxel = vk;
     }
-    if (d < 0.999 * gsdf_band_voxels * vk) {
+    if (d < 0.999 * gsdf.band.x * vk) {
       break;                 /* not saturated: the finest informative value */
     }
   }

@@ -24,6 +24,9 @@ import pytest
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 RESULT_MARK = "@@LUMEN_RESULT "
+# Blender prints this for a shader whose push constants exceed the 128 bytes Vulkan guarantees
+# (on OpenGL too); every pass must keep within them, so any run that prints it fails.
+PUSH_CONSTANT_WARNING = "Push constants have a minimum supported size"
 
 PREAMBLE = f"""
 import json, sys
@@ -64,6 +67,8 @@ def run_python(snippet: str, tmp_path: Path, *, load_addon: bool = True, timeout
     code = PREAMBLE + (LOAD_ADDON if load_addon else "") + textwrap.dedent(snippet)
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=timeout, env=full_env, cwd=tmp_path)
+    over = [line for line in (proc.stdout + proc.stderr).splitlines() if PUSH_CONSTANT_WARNING in line]
+    assert not over, "a shader exceeds Vulkan's 128 push-constant bytes:\n" + "\n".join(over)
     result = {}
     for line in proc.stdout.splitlines():
         if line.startswith(RESULT_MARK):

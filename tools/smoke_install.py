@@ -1,0 +1,120 @@
+"""Install the built extension zip into a Blender, enable it, bake the demo scene and render F12.
+
+    <python with bpy> tools/smoke_install.py ZIP --out DIR [--size W H] [--gpu-backend opengl|vulkan]
+
+Runs under any supported Blender's Python (bpy 4.2 with CPython 3.11 up to bpy 5.3 with 3.13), as
+an artist's install would: `package_install_files` into the user repository (set
+BLENDER_USER_RESOURCES to a clean folder first), enable, then the N-panel's Bake and F12 with the
+"Lumen GI" engine. Nothing of the repository is imported but `demo.build_demo_scene` (plain bpy
+calls), so the code under test is the installed zip's.
+
+Writes DIR/render.npy (float32 [h, w, 4] of the F12 image, rows bottom-up as Blender stores them)
+and DIR/report.json (Blender and Python versions, GPU backend, install/enable/bake results, the
+number of push-constant warnings printed). Exits 1 on any failure with the reason on stderr.
+--gpu-backend selects Blender's backend through the preferences of the clean user folder (read
+at start-up: the first run saves them and re-runs itself), as an artist would in Preferences >
+System.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+MODULE = "bl_ext.user_default.lumen_gi"
+
+
+def set_backend_and_restart(backend: str, argv) -> int:
+    """Save the GPU backend preference in the (clean) user folder and run again in a new process."""
+    import bpy
+
+    prefs = bpy.context.preferences.system
+    if not hasattr(prefs, "gpu_backend"):
+        print(f"error: this Blender ({bpy.app.version_string}) has no GPU backend preference",
+              file=sys.stderr)
+        return 1
+    prefs.gpu_backend = backend.upper()
+    bpy.ops.wm.save_userpref()
+    args = [a for a in argv if a != "--gpu-backend" and a.lower() != backend.lower()]
+    return subprocess.run([sys.executable, __file__, *args, "--backend-set"]).returncode
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("zip")
+    parser.add_argument("--out", required=True)
+    parser.add_argument("--size", type=int, nargs=2, default=(96, 72))
+    parser.add_argument("--gpu-backend", choices=("opengl", "vulkan"))
+    parser.add_argument("--backend-set", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if not os.environ.get("BLENDER_USER_RESOURCES"):
+        print("error: set BLENDER_USER_RESOURCES to a clean folder (the install goes there)",
+              file=sys.stderr)
+        return 1
+    if args.gpu_backend and not args.backend_set:
+        return set_backend_and_restart(args.gpu_backend, argv)
+
+    import bpy
+
+    out = Path(args.out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    report = {"blender": bpy.app.version_string, "python": sys.version.split()[0]}
+
+    def fail(message: str) -> int:
+        report["error"] = message
+        (out / "report.json").write_text(json.dumps(report, indent=1))
+        print(f"error: {message}", file=sys.stderr)
+        return 1
+
+    result = bpy.ops.extensions.package_install_files(
+        filepath=str(Path(args.zip).resolve()), repo="user_default", enable_on_install=True)
+    report["install"] = sorted(result)
+    if MODULE not in bpy.context.preferences.addons:
+        return fail(f"{MODULE} is not enabled after the install ({sorted(result)})")
+    addon = importlib.import_module(MODULE)
+
+    sys.path.insert(0, str(HERE))
+    import demo   # only its scene builder: plain bpy calls
+
+    scene = demo.build_demo_scene(factory_reset=False)   # keeps the enabled extension
+    scene.lumen.cache_dir = str(out / "cache")
+    baked = bpy.ops.lumen.bake()
+    report["bake"] = sorted(baked)
+    report["bake_status"] = scene.lumen.last_status
+    if baked != {"FINISHED"}:
+        return fail(f"bake returned {sorted(baked)}: {scene.lumen.last_status}")
+
+    scene.render.engine = "LUMEN_GI"
+    scene.render.resolution_x, scene.render.resolution_y = args.size
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    exr = Path(tempfile.mkdtemp()) / "render.exr"
+    scene.render.filepath = str(exr)
+    engine = addon.gpu_shaders.engine
+    bpy.ops.render.render(write_still=True)
+    info = getattr(engine, "LAST_RENDER", {}) or {}
+    if info.get("error"):
+        return fail(f"F12: {info['error']}")
+    report["gpu_backend"] = info.get("gpu_backend", "unknown")
+    if not exr.is_file():
+        return fail(f"F12 wrote no image at {exr}")
+    image = bpy.data.images.load(str(exr))
+    import numpy as np
+    pixels = np.empty(image.size[0] * image.size[1] * 4, np.float32)
+    image.pixels.foreach_get(pixels)
+    np.save(out / "render.npy", pixels.reshape(image.size[1], image.size[0], 4))
+    (out / "report.json").write_text(json.dumps(report, indent=1))
+    print(json.dumps(report))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
