@@ -55,7 +55,14 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
 
 
 def texture(size, fmt='RGBA32F'):
-    return gpu.types.GPUTexture((int(size[0]), int(size[1])), format=fmt)
+    """A new 2D texture cleared to zero. A new GPUTexture's contents are undefined (Blender 5.3's
+    OpenGL backend hands back memory of freed textures), so a pass that leaves texels unwritten
+    would let the next pass read garbage."""
+    tex = gpu.types.GPUTexture((int(size[0]), int(size[1])), format=fmt)
+    channels = next(n for prefix, n in (("RGBA", 4), ("RGB", 3), ("RG", 2), ("R", 1))
+                    if fmt.startswith(prefix))
+    tex.clear(format='INT' if fmt.endswith('I') else 'FLOAT', value=(0,) * channels)
+    return tex
 
 
 def dispatch(sh, width: int, height: int):

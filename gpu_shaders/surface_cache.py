@@ -35,7 +35,7 @@ GROUP = 8
 
 def _tex(size, fmt, data=None):
     if data is None:
-        return gpu.types.GPUTexture(size, format=fmt)
+        return compute.texture(size, fmt)
     return gpu.types.GPUTexture(size, format=fmt, data=float_buffer(data))
 
 

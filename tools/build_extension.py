@@ -1,4 +1,4 @@
-"""Build the installable extension zip: fetch the bundled wheels, validate, build.
+"""Build the installable extension zips: fetch the bundled wheels, validate, build one per Python.
 
     .venv/bin/python tools/build_extension.py [--output-dir dist] [--split-platforms]
 
@@ -6,8 +6,10 @@
    no dependencies, for the wheel's own platform and CPython version: 3.11 for Blender 4.2 to
    5.0, 3.13 for Blender 5.1 and later).
 2. Runs Blender's own extension tool (`blender_ext.py`, shipped inside the bpy wheel; the same
-   code as `blender --command extension`) to validate the manifest and build the zip.
-3. Prints the zip path(s) last, one per line.
+   code as `blender --command extension`) to validate the manifest, then builds one zip per
+   CPython: `lumen_gi-<version>-py311.zip` (Blender 4.2 to 5.0) and `...-py313.zip` (Blender 5.1
+   and later); with --split-platforms one per platform and CPython (`...-linux_x64-py313.zip`).
+3. Prints the zip paths last, one per line.
 
 Exit codes: 0 built, 1 validation or build failed, 3 a wheel could not be downloaded (offline).
 """
@@ -15,8 +17,10 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import shutil
 import subprocess
 import sys
+import tempfile
 import tomllib
 from pathlib import Path
 
@@ -85,7 +89,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--output-dir", default=str(ROOT / "dist"))
     parser.add_argument("--split-platforms", action="store_true",
-                        help="one zip per platform, each with only its own wheels")
+                        help="one zip per platform and Python, each with only its own wheels")
     args = parser.parse_args(argv)
 
     data = manifest()
@@ -98,28 +102,63 @@ def main(argv=None) -> int:
     tool = blender_ext_tool()
     out = Path(args.output_dir).resolve()
     out.mkdir(parents=True, exist_ok=True)
-    before = set(out.glob("*.zip"))
-    steps = [["validate", str(ROOT)],
-             ["build", "--source-dir", str(ROOT), "--output-dir", str(out)]
-             + (["--split-platforms"] if args.split_platforms else [])]
-    for step in steps:
-        cmd = [sys.executable, str(tool), *step]
-        print("+", " ".join(cmd), flush=True)
-        if subprocess.run(cmd).returncode != 0:
-            print(f"error: blender_ext {step[0]} failed", file=sys.stderr)
-            return 1
-    if args.split_platforms:
-        zips = sorted(out.glob(f"{data['id']}-{data['version']}-*.zip"))
-    else:
-        zips = [out / f"{data['id']}-{data['version']}.zip"]
-    missing = [z for z in zips if not z.is_file()]
-    if not zips or missing:
-        print(f"error: expected zip not built in {out} (new files: "
-              f"{sorted(map(str, set(out.glob('*.zip')) - before))})", file=sys.stderr)
+    cmd = [sys.executable, str(tool), "validate", str(ROOT)]
+    print("+", " ".join(cmd), flush=True)
+    if subprocess.run(cmd).returncode != 0:
+        print("error: blender_ext validate failed", file=sys.stderr)
         return 1
+    zips = []
+    for tag in python_tags(data):
+        with tempfile.TemporaryDirectory(prefix=f"lumen-build-{tag}-") as tmp:
+            stage = stage_source(Path(tmp) / data["id"], tag)
+            built = Path(tmp) / "zips"
+            built.mkdir()
+            cmd = [sys.executable, str(tool), "build", "--source-dir", str(stage),
+                   "--output-dir", str(built)] + (["--split-platforms"] if args.split_platforms else [])
+            print("+", " ".join(cmd), flush=True)
+            if subprocess.run(cmd).returncode != 0:
+                print(f"error: blender_ext build failed ({tag})", file=sys.stderr)
+                return 1
+            found = sorted(built.glob(f"{data['id']}-{data['version']}*.zip"))
+            if not found:
+                print(f"error: blender_ext built no zip for {tag} in {built}", file=sys.stderr)
+                return 1
+            for z in found:   # lumen_gi-0.1.0[-linux_x64].zip -> lumen_gi-0.1.0[-linux_x64]-py311.zip
+                target = out / f"{z.stem}-py{tag[2:]}.zip"
+                shutil.move(str(z), target)
+                zips.append(target)
     for z in zips:
         print(z)
     return 0
+
+
+def python_tags(data: dict) -> list[str]:
+    """The CPython tags of the manifest's wheels, oldest first: ['cp311', 'cp313']."""
+    return sorted({Path(w).name[:-len(".whl")].split("-")[-3] for w in data.get("wheels", [])},
+                  key=lambda t: int(t[3:]))
+
+
+def stage_source(stage: Path, tag: str) -> Path:
+    """A copy of the source whose manifest lists only the `tag` wheels (and wheels/ only them).
+
+    One zip per Python: Blender 4.2.0 to about 4.2.4 install every wheel of their platform
+    whatever its Python, so a zip with cp311 and cp313 embreex ends with the cp313 build over the
+    cp311 one there (measured: 4.2.0 cannot import embreex.rtcore_scene). Blender reads the
+    Python versions from the wheels' tags, so each zip installs only where its Python runs and
+    is refused with a clear message elsewhere."""
+    ignore = shutil.ignore_patterns(".git", ".venv", "wheels", "dist", "out", "build", "__pycache__",
+                                    ".pytest_cache", "*.blend1")
+    shutil.copytree(ROOT, stage, ignore=ignore)
+    (stage / "wheels").mkdir()
+    for rel in manifest().get("wheels", []):
+        name = Path(rel).name
+        if name.split("-")[-3] == tag:
+            shutil.copy2(ROOT / "wheels" / name, stage / "wheels" / name)
+    text = (ROOT / "blender_manifest.toml").read_text(encoding="utf-8")
+    kept = [line for line in text.splitlines(keepends=True)
+            if not (line.strip().startswith('"./wheels/') and f"-{tag}-" not in line)]
+    (stage / "blender_manifest.toml").write_text("".join(kept), encoding="utf-8")
+    return stage
 
 
 if __name__ == "__main__":

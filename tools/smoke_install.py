@@ -1,6 +1,6 @@
 """Install the built extension zip into a Blender, enable it, bake the demo scene and render F12.
 
-    <python with bpy> tools/smoke_install.py ZIP --out DIR [--size W H] [--gpu-backend opengl|vulkan]
+    <python with bpy> tools/smoke_install.py ZIP --out DIR [--size W H]
 
 Runs under any supported Blender's Python (bpy 4.2 with CPython 3.11 up to bpy 5.3 with 3.13), as
 an artist's install would: `package_install_files` into the user repository (set
@@ -9,11 +9,9 @@ BLENDER_USER_RESOURCES to a clean folder first), enable, then the N-panel's Bake
 calls), so the code under test is the installed zip's.
 
 Writes DIR/render.npy (float32 [h, w, 4] of the F12 image, rows bottom-up as Blender stores them)
-and DIR/report.json (Blender and Python versions, GPU backend, install/enable/bake results, the
-number of push-constant warnings printed). Exits 1 on any failure with the reason on stderr.
---gpu-backend selects Blender's backend through the preferences of the clean user folder (read
-at start-up: the first run saves them and re-runs itself), as an artist would in Preferences >
-System.
+DIR/passes.npz (the G-buffer, direct and indirect light) and DIR/report.json (Blender and Python versions, install/enable/bake results and the
+GPU backend F12 ran on). Exits 1 on any failure with the reason on stderr. Blender picks the
+backend itself (tools/version_matrix.py shows how a leg forces OpenGL).
 """
 from __future__ import annotations
 
@@ -21,7 +19,6 @@ import argparse
 import importlib
 import json
 import os
-import subprocess
 import sys
 import tempfile
 from pathlib import Path
@@ -30,36 +27,17 @@ HERE = Path(__file__).resolve().parent
 MODULE = "bl_ext.user_default.lumen_gi"
 
 
-def set_backend_and_restart(backend: str, argv) -> int:
-    """Save the GPU backend preference in the (clean) user folder and run again in a new process."""
-    import bpy
-
-    prefs = bpy.context.preferences.system
-    if not hasattr(prefs, "gpu_backend"):
-        print(f"error: this Blender ({bpy.app.version_string}) has no GPU backend preference",
-              file=sys.stderr)
-        return 1
-    prefs.gpu_backend = backend.upper()
-    bpy.ops.wm.save_userpref()
-    args = [a for a in argv if a != "--gpu-backend" and a.lower() != backend.lower()]
-    return subprocess.run([sys.executable, __file__, *args, "--backend-set"]).returncode
-
-
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("zip")
     parser.add_argument("--out", required=True)
     parser.add_argument("--size", type=int, nargs=2, default=(96, 72))
-    parser.add_argument("--gpu-backend", choices=("opengl", "vulkan"))
-    parser.add_argument("--backend-set", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if not os.environ.get("BLENDER_USER_RESOURCES"):
         print("error: set BLENDER_USER_RESOURCES to a clean folder (the install goes there)",
               file=sys.stderr)
         return 1
-    if args.gpu_backend and not args.backend_set:
-        return set_backend_and_restart(args.gpu_backend, argv)
 
     import bpy
 
@@ -111,6 +89,10 @@ def main(argv=None) -> int:
     pixels = np.empty(image.size[0] * image.size[1] * 4, np.float32)
     image.pixels.foreach_get(pixels)
     np.save(out / "render.npy", pixels.reshape(image.size[1], image.size[0], 4))
+    # the engine's intermediate images, to tell which pass differs between Blenders
+    np.savez(out / "passes.npz", **{k: np.asarray(info[k], np.float32) for k in
+                                    ("position", "normal", "albedo", "emission", "direct", "indirect")
+                                    if k in info})
     (out / "report.json").write_text(json.dumps(report, indent=1))
     print(json.dumps(report))
     return 0

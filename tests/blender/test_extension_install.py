@@ -19,8 +19,10 @@ def extension_zip():
     if proc.returncode == EXIT_DOWNLOAD_FAILED:
         pytest.skip(f"bundled wheels could not be downloaded (offline?): {proc.stderr.strip()}")
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    zip_path = proc.stdout.strip().splitlines()[-1]
-    assert zip_path.endswith(".zip"), proc.stdout
+    tag = f"-py{sys.version_info[0]}{sys.version_info[1]}.zip"     # the zip for this Python
+    zips = [z for z in proc.stdout.strip().splitlines() if z.endswith(tag)]
+    assert zips, proc.stdout
+    zip_path = zips[0]
     return zip_path
 
 
