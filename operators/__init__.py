@@ -3,9 +3,9 @@
 Each module registers its own classes; order matters (properties before the operators and panel
 that use them).
 """
-from . import atlas_op, bake_op, export_op, extract, panel, properties
+from . import atlas_op, bake_op, export_op, extract, panel, properties, stock_panels
 
-_MODULES = (properties, extract, bake_op, export_op, atlas_op, panel)
+_MODULES = (properties, extract, bake_op, export_op, atlas_op, panel, stock_panels)
 
 
 def register():
