@@ -16,6 +16,37 @@ from .resources import SceneResources, glsl
 
 GROUP = 8
 _SHADERS = {}
+GUARD = "bind_guard"
+
+
+def new_info(group=(GROUP, GROUP, 1)):
+    """A GPUShaderCreateInfo for a compute pass, with the bind guard as its first push constant.
+
+    Why: Blender 5.3's OpenGL backend writes the texture unit of every `uniform_sampler` call into
+    the shader's first uniform as well (measured: four samplers holding 1, 2, 3, 4 read back 4, 2,
+    3, 4 when the shader has no push constant; tests/versions). An int constant that comes first,
+    is read (so the compiler keeps it) and is set last absorbs those writes, whatever the order in
+    which a pass binds its samplers and constants. Costs one uniform compare per invocation."""
+    info = gpu.types.GPUShaderCreateInfo()
+    info.local_group_size(*group)
+    info.push_constant('INT', GUARD)
+    return info
+
+
+def create(info, source: str):
+    """The compute shader of `source` (exactly one `void main()`), run behind the bind guard."""
+    if source.count("void main()") != 1:
+        raise ValueError("a compute source needs exactly one 'void main()'")
+    source = source.replace("void main()", "void pass_main()") + (
+        f"\nvoid main()\n{{\n  if ({GUARD} == -1) {{\n    return;\n  }}\n  pass_main();\n}}\n")
+    info.compute_source(source)
+    return gpu.shader.create_from_info(info)
+
+
+def run(sh, groups_x: int, groups_y: int = 1, groups_z: int = 1):
+    """gpu.compute.dispatch of sh after setting the bind guard (last, see new_info)."""
+    sh.uniform_int(GUARD, 0)
+    gpu.compute.dispatch(sh, int(groups_x), int(groups_y), int(groups_z))
 
 
 def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), scene=False,
@@ -24,8 +55,7 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
     (name, format); push: (type, name)."""
     if name in _SHADERS:
         return _SHADERS[name]
-    info = gpu.types.GPUShaderCreateInfo()
-    info.local_group_size(GROUP, GROUP, 1)
+    info = new_info()
     slot = 0
     src = []
     if scene:
@@ -49,8 +79,7 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
     for kind, pname in push:
         info.push_constant(kind, pname)
     src += [glsl(lib) for lib in libs] + [glsl(name + ".comp.glsl")]
-    info.compute_source("\n".join(src))
-    _SHADERS[name] = gpu.shader.create_from_info(info)
+    _SHADERS[name] = create(info, "\n".join(src))
     return _SHADERS[name]
 
 
@@ -66,7 +95,7 @@ def texture(size, fmt='RGBA32F'):
 
 
 def dispatch(sh, width: int, height: int):
-    gpu.compute.dispatch(sh, -(-int(width) // GROUP), -(-int(height) // GROUP), 1)
+    run(sh, -(-int(width) // GROUP), -(-int(height) // GROUP), 1)
 
 
 def read(tex) -> np.ndarray:

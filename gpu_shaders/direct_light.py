@@ -14,6 +14,7 @@ import time
 import gpu
 import numpy as np
 
+from . import compute
 from .gbuffer import ATTACHMENTS, read_texture
 from .resources import SceneResources, float_buffer, glsl
 
@@ -25,8 +26,7 @@ _SHADER = {}
 
 def direct_shader():
     if "direct" not in _SHADER:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.local_group_size(GROUP, GROUP, 1)
+        info = compute.new_info((GROUP, GROUP, 1))
         slot = SceneResources.declare(info, 0)
         for name in ATTACHMENTS:
             info.sampler(slot, 'FLOAT_2D', "gbuf_" + name)
@@ -39,9 +39,9 @@ def direct_shader():
         info.push_constant('INT', 'light_count')
         info.push_constant('INT', 'light_samples')
         info.push_constant('INT', 'sky_cones')
-        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("light_lib.glsl") + "\n"
-                            + glsl("direct_light.comp.glsl"))
-        _SHADER["direct"] = gpu.shader.create_from_info(info)
+        _SHADER["direct"] = compute.create(
+            info, glsl("sdf_lib.glsl") + "\n" + glsl("light_lib.glsl") + "\n"
+            + glsl("direct_light.comp.glsl"))
     return _SHADER["direct"]
 
 
@@ -73,7 +73,7 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky, cam_po
     shader.uniform_int("light_count", count)
     shader.uniform_int("light_samples", int(light_samples))
     shader.uniform_int("sky_cones", int(sky_cones))
-    gpu.compute.dispatch(shader, -(-width // GROUP), -(-height // GROUP), 1)
+    compute.run(shader, -(-width // GROUP), -(-height // GROUP), 1)
     out = {"direct": read_texture(direct, width, height),
            "combined": read_texture(combined, width, height),
            "textures": {"direct": direct, "combined": combined}}

@@ -19,6 +19,7 @@ import time
 import gpu
 import numpy as np
 
+from . import compute
 from .global_sdf_ref import BAND_VOXELS, LEVELS, level_origin, level_voxel
 from .resources import SceneResources, float_buffer, glsl
 
@@ -38,8 +39,7 @@ def _build_shader(fmt: str):
     """The build shader for a level texture of format fmt (the image format must match it)."""
     key = "build_" + fmt
     if key not in _SHADERS:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.local_group_size(GROUP, GROUP, GROUP)
+        info = compute.new_info((GROUP, GROUP, GROUP))
         SceneResources.declare(info, 0)
         info.image(0, fmt, 'FLOAT_3D', 'gsdf_out', qualifiers={'WRITE'})
         info.push_constant('VEC4', 'build_origin')
@@ -47,25 +47,24 @@ def _build_shader(fmt: str):
         info.push_constant('FLOAT', 'build_band')
         imod = ("ivec3 gsdf_imod(ivec3 a, int n)\n{\n"
                 "  return a - n * ivec3(floor(vec3(a) / float(n)));\n}\n")
-        info.compute_source(glsl("sdf_lib.glsl") + "\n" + imod + glsl("global_sdf_build.comp.glsl"))
-        _SHADERS[key] = gpu.shader.create_from_info(info)
+        _SHADERS[key] = compute.create(
+            info, glsl("sdf_lib.glsl") + "\n" + imod + glsl("global_sdf_build.comp.glsl"))
     return _SHADERS[key]
 
 
 def _flatten_shader():
     if "flatten" not in _SHADERS:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.local_group_size(8, 8, 1)
+        info = compute.new_info((8, 8, 1))
         info.sampler(0, 'FLOAT_3D', 'src')
         info.image(0, 'R32F', 'FLOAT_2D', 'dst', qualifiers={'WRITE'})
-        info.compute_source(
+        _SHADERS["flatten"] = compute.create(
+            info,
             "void main() {\n"
             "  ivec2 p = ivec2(gl_GlobalInvocationID.xy);\n"
             "  int n = textureSize(src, 0).x;\n"
             "  if (p.x >= n || p.y >= n * n) { return; }\n"
             "  imageStore(dst, p, vec4(texelFetch(src, ivec3(p.x, p.y % n, p.y / n), 0).x));\n"
             "}\n")
-        _SHADERS["flatten"] = gpu.shader.create_from_info(info)
     return _SHADERS["flatten"]
 
 
@@ -103,7 +102,7 @@ class GlobalSDF:
         sh.uniform_float('build_prev', (*map(float, prev), 1.0) if prev is not None else (0.0, 0.0, 0.0, 0.0))
         sh.uniform_float('build_band', self.band_voxels * v)
         g = -(-self.n // GROUP)
-        gpu.compute.dispatch(sh, g, g, g)
+        compute.run(sh, g, g, g)
 
     def update(self, camera_pos, frame: int, objects_changed: bool = False) -> list:
         """Refresh the levels due this frame; returns [(level, 'build' | 'scroll')] done."""
@@ -144,7 +143,7 @@ class GlobalSDF:
         sh = _flatten_shader()
         sh.uniform_sampler('src', self.textures[level])
         sh.image('dst', flat)
-        gpu.compute.dispatch(sh, -(-n // 8), -(-n * n // 8), 1)
+        compute.run(sh, -(-n // 8), -(-n * n // 8), 1)
         return np.asarray(flat.read().to_list(), np.float32).reshape(n, n, n)
 
     def stats(self) -> dict:
@@ -206,17 +205,16 @@ void main()
 
 def hybrid_trace_shader():
     if "trace" not in _SHADERS:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.local_group_size(8, 8, 1)
+        info = compute.new_info((8, 8, 1))
         slot = SceneResources.declare(info, 0)
         GlobalSDF.declare(info, slot)
         info.image(0, 'RGBA32F', 'FLOAT_2D', 'trace_out', qualifiers={'WRITE'})
         info.push_constant('MAT4', 'inv_view_proj')
         info.push_constant('FLOAT', 't_max')
         info.push_constant('INT', 'max_steps')
-        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("global_sdf_lib.glsl") + "\n"
-                            + glsl("camera_lib.glsl") + "\n" + TRACE_MAIN)
-        _SHADERS["trace"] = gpu.shader.create_from_info(info)
+        _SHADERS["trace"] = compute.create(
+            info, glsl("sdf_lib.glsl") + "\n" + glsl("global_sdf_lib.glsl") + "\n"
+            + glsl("camera_lib.glsl") + "\n" + TRACE_MAIN)
     return _SHADERS["trace"]
 
 
@@ -235,7 +233,7 @@ def trace_hybrid(gsdf: GlobalSDF, inv_view_proj, width: int, height: int, t_max:
     sh.uniform_float('inv_view_proj', mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
     sh.uniform_float('t_max', float(t_max))
     sh.uniform_int('max_steps', int(max_steps))
-    gpu.compute.dispatch(sh, -(-width // 8), -(-height // 8), 1)
+    compute.run(sh, -(-width // 8), -(-height // 8), 1)
     data = np.asarray(out.read().to_list(), np.float32).reshape(height, width, 4)
     return {"hit": data[..., 0].copy(), "steps": data[..., 1].astype(np.int32),
             "global_steps": data[..., 2].astype(np.int32), "seconds": time.perf_counter() - t0}
@@ -260,13 +258,11 @@ void main()
 def sample_points(gsdf: GlobalSDF, points) -> dict:
     """global_sdf_sample at world points (float [P, 3]): {'d', 'level' (-1 outside), 'voxel'}."""
     if "sample" not in _SHADERS:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.local_group_size(64, 1, 1)
+        info = compute.new_info((64, 1, 1))
         info.sampler(0, 'FLOAT_2D', 'points')
         GlobalSDF.declare(info, 1)
         info.image(0, 'RGBA32F', 'FLOAT_2D', 'sample_out', qualifiers={'WRITE'})
-        info.compute_source(glsl("global_sdf_lib.glsl") + "\n" + SAMPLE_MAIN)
-        _SHADERS["sample"] = gpu.shader.create_from_info(info)
+        _SHADERS["sample"] = compute.create(info, glsl("global_sdf_lib.glsl") + "\n" + SAMPLE_MAIN)
     sh = _SHADERS["sample"]
 
     p = np.asarray(points, np.float32).reshape(-1, 3)
@@ -278,6 +274,6 @@ def sample_points(gsdf: GlobalSDF, points) -> dict:
     sh.uniform_sampler('points', src)
     gsdf.bind(sh)
     sh.image('sample_out', out)
-    gpu.compute.dispatch(sh, -(-count // 64), 1, 1)
+    compute.run(sh, -(-count // 64), 1, 1)
     data = np.asarray(out.read().to_list(), np.float32).reshape(count, 4)
     return {"d": data[:, 0].copy(), "level": data[:, 1].astype(np.int32), "voxel": data[:, 2].copy()}

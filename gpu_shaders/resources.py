@@ -32,22 +32,25 @@ def float_buffer(array) -> "gpu.types.Buffer":
 
 
 def _copy_shader():
+    from . import compute   # compute imports this module
+
     if "copy_int" not in _SHADERS:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.local_group_size(8, 8, 1)
+        info = compute.new_info((8, 8, 1))
         info.sampler(0, 'FLOAT_2D', 'src')
         info.image(0, 'R32I', 'INT_2D', 'dst', qualifiers={'WRITE'})
-        info.compute_source(
+        _SHADERS["copy_int"] = compute.create(
+            info,
             "void main() {\n"
             "  ivec2 p = ivec2(gl_GlobalInvocationID.xy);\n"
             "  if (p.x >= imageSize(dst).x || p.y >= imageSize(dst).y) { return; }\n"
             "  imageStore(dst, p, ivec4(int(round(texelFetch(src, p, 0).x)), 0, 0, 0));\n"
             "}\n")
-        _SHADERS["copy_int"] = gpu.shader.create_from_info(info)
     return _SHADERS["copy_int"]
 
 
 def int_texture_2d(values: np.ndarray) -> "gpu.types.GPUTexture":
+    from . import compute
+
     """R32I 2D texture of int32 values [rows, width] (|v| < 2^24), via an R32F staging texture."""
     rows, width = values.shape
     staging = gpu.types.GPUTexture((width, rows), format='R32F', data=float_buffer(values))
@@ -55,7 +58,7 @@ def int_texture_2d(values: np.ndarray) -> "gpu.types.GPUTexture":
     sh = _copy_shader()
     sh.uniform_sampler('src', staging)
     sh.image('dst', tex)
-    gpu.compute.dispatch(sh, -(-width // 8), -(-rows // 8), 1)
+    compute.run(sh, -(-width // 8), -(-rows // 8), 1)
     del staging
     return tex
 

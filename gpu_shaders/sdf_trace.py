@@ -10,6 +10,7 @@ import time
 import gpu
 import numpy as np
 
+from . import compute
 from .reference import camera_rays  # noqa: F401  (the numpy twin of the shader's rays)
 from .resources import SceneResources, glsl
 
@@ -21,16 +22,15 @@ _SHADER = {}
 def trace_shader():
     """The compiled trace shader (compiled once per process)."""
     if "trace" not in _SHADER:
-        info = gpu.types.GPUShaderCreateInfo()
-        info.local_group_size(GROUP, GROUP, 1)
+        info = compute.new_info((GROUP, GROUP, 1))
         SceneResources.declare(info, 0)
         info.image(0, 'RG32F', 'FLOAT_2D', 'trace_out', qualifiers={'WRITE'})
         info.push_constant('MAT4', 'inv_view_proj')
         info.push_constant('FLOAT', 't_max')
         info.push_constant('INT', 'max_steps')
-        info.compute_source(glsl("sdf_lib.glsl") + "\n" + glsl("camera_lib.glsl") + "\n"
-                            + glsl("sdf_trace.comp.glsl"))
-        _SHADER["trace"] = gpu.shader.create_from_info(info)
+        _SHADER["trace"] = compute.create(
+            info, glsl("sdf_lib.glsl") + "\n" + glsl("camera_lib.glsl") + "\n"
+            + glsl("sdf_trace.comp.glsl"))
     return _SHADER["trace"]
 
 
@@ -48,7 +48,7 @@ def trace(resources: SceneResources, inv_view_proj, width: int, height: int, t_m
     shader.uniform_float('inv_view_proj', mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
     shader.uniform_float('t_max', float(t_max))
     shader.uniform_int('max_steps', int(max_steps))
-    gpu.compute.dispatch(shader, -(-width // GROUP), -(-height // GROUP), 1)
+    compute.run(shader, -(-width // GROUP), -(-height // GROUP), 1)
     data = np.asarray(out.read().to_list(), np.float32).reshape(height, width, -1)
     t2 = time.perf_counter()
     return {"hit": data[..., 0].copy(), "steps": data[..., 1].astype(np.int32),

@@ -154,7 +154,7 @@ class SurfaceCache:
         sh.image("out_image", rays)
         sh.image("probe_out", probes)
         sh.image("probe_pos_out", probe_pos)
-        gpu.compute.dispatch(sh, -(-gw * 4 // GROUP), -(-gh * 4 // GROUP), 1)
+        compute.run(sh, -(-gw * 4 // GROUP), -(-gh * 4 // GROUP), 1)
 
         coeffs = _tex((gw * 2, gh * 2), 'RGBA32F')
         irradiance = _tex((gw, gh), 'RGBA32F')
@@ -169,7 +169,7 @@ class SurfaceCache:
         sh.uniform_int("frame", int(frame))
         sh.image("out_image", coeffs)
         sh.image("irradiance_out", irradiance)
-        gpu.compute.dispatch(sh, -(-gw // GROUP), -(-gh // GROUP), 1)
+        compute.run(sh, -(-gw // GROUP), -(-gh // GROUP), 1)
 
         sh = pass_shader("surface_cache_indirect", probe_libs,
                          ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos",
@@ -239,7 +239,7 @@ class SurfaceCache:
         sh.uniform_float("cam_pos", [float(c) for c in np.asarray(cam_pos, np.float64)[:3]])
         out = _tex((width, height), 'RGBA32F')
         sh.image("out_image", out)
-        gpu.compute.dispatch(sh, -(-width // GROUP), -(-height // GROUP), 1)
+        compute.run(sh, -(-width // GROUP), -(-height // GROUP), 1)
         return compute.read(out)
 
     def read_layer(self, resources: SceneResources, name: str) -> np.ndarray:
@@ -248,7 +248,7 @@ class SurfaceCache:
 
     def _dispatch(self, sh):
         lw, lh = self.packed.lighting_size
-        gpu.compute.dispatch(sh, -(-lw // GROUP), -(-lh // GROUP), 1)
+        compute.run(sh, -(-lw // GROUP), -(-lh // GROUP), 1)
 
     def read(self, name: str) -> np.ndarray:
         """float32 [h, w, 4] of a lighting texture ('direct', 'indirect', 'final')."""
