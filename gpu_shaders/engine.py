@@ -138,6 +138,16 @@ def debug_view(scene) -> str:
     return view
 
 
+def pixel_size(scene, context=None) -> int:
+    """The viewport's pixel size: scene.render.preview_pixel_size, 'AUTO' meaning the interface's
+    pixel size (high-DPI displays render at half resolution, as Cycles and EEVEE do)."""
+    value = getattr(scene.render, "preview_pixel_size", "AUTO")
+    if value == "AUTO":
+        prefs = getattr(context, "preferences", None) or bpy.context.preferences
+        return max(1, int(round(getattr(prefs.system, "pixel_size", 1.0))))
+    return max(1, int(value))
+
+
 def gpu_backend() -> str:
     """'OPENGL', 'VULKAN', 'METAL' (...) of the running Blender, 'unknown' where it cannot say."""
     import gpu
@@ -193,7 +203,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         LAST_RENDER["gpu_bytes"] = MEMORY[scene.name]
         LAST_RENDER["shown"] = img
         return {"Combined": img}
-    gi_cfg = gi_settings.from_scene(scene.lumen)
+    gi_cfg = gi_settings.from_scene(scene.lumen, viewport=not final)
     sky, sky_notes = world_colour(scene)
     gbuf = gbuffer.render_gbuffer(objects, view_proj, width, height)
     t3 = time.perf_counter()
@@ -373,18 +383,23 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
 
         scene = depsgraph.scene
         w, h = context.region.width, context.region.height
+        # Blender's viewport Pixel Size (Render Properties > Performance, as Cycles and EEVEE):
+        # the frame runs at 1/ps of the region per side and is drawn stretched over it.
+        ps = pixel_size(scene, context)
+        fw, fh = max(1, -(-w // ps)), max(1, -(-h // ps))
         rd = context.region_data
         try:
             img = frame(depsgraph, scene, np.array(rd.perspective_matrix, np.float64),
                         np.array(rd.view_matrix.inverted().translation, np.float64),
-                        float(context.space_data.clip_end), w, h, debug_view(scene),
+                        float(context.space_data.clip_end), fw, fh, debug_view(scene),
                         final=False)["Combined"]
         except Exception as exc:
             LAST_RENDER["error"] = str(exc)
             return
+        LAST_RENDER["pixel_size"] = ps
         if LAST_RENDER.get("gi_converged") is False:
             self.tag_redraw()              # progressive: keep accumulating GI frames
-        tex = gpu.types.GPUTexture((w, h), format='RGBA16F', data=float_buffer(img))
+        tex = gpu.types.GPUTexture((fw, fh), format='RGBA16F', data=float_buffer(img))
         shader = gpu.shader.from_builtin('IMAGE')
         batch = batch_for_shader(shader, 'TRI_FAN', {
             "pos": ((0, 0), (w, 0), (w, h), (0, h)),

@@ -55,9 +55,12 @@ def settings(quality: str = "MEDIUM", **overrides) -> GISettings:
     return replace(GISettings(quality=quality, **base), **overrides)
 
 
-def from_scene(scene_settings) -> GISettings:
-    """GISettings from a scene's `lumen` property group (or anything with those attributes)."""
+def from_scene(scene_settings, viewport: bool = False) -> GISettings:
+    """GISettings from a scene's `lumen` property group (or anything with those attributes):
+    the render quality for F12, the viewport quality (if it has one) for the viewport."""
     q = getattr(scene_settings, "gi_quality", "MEDIUM")
+    if viewport:
+        q = getattr(scene_settings, "viewport_gi_quality", q)
     return settings(q, bounces=int(getattr(scene_settings, "bounces", 3)),
                     render_frames=int(getattr(scene_settings, "render_frames", 8)),
                     gather=str(getattr(scene_settings, "gi_gather", "PROBES")))

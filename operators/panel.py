@@ -61,7 +61,7 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
         if scene.render.engine == 'LUMEN_GI':
             box = layout.box()
             box.label(text="Preview Engine", icon='SHADING_RENDERED')
-            draw_gi_settings(box, s)
+            draw_gi_settings(box, s, scene.render)
             box.prop(s, "debug_view")
             draw_memory(box, scene)
 
@@ -69,8 +69,11 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
         layout.operator("lumen.open_atlas", icon='IMAGE_DATA')
 
 
-def draw_gi_settings(layout, s):
+def draw_gi_settings(layout, s, render=None):
     col = layout.column()
+    col.prop(s, "viewport_gi_quality")
+    if render is not None:      # Blender's own viewport setting, used by Cycles and EEVEE too
+        col.prop(render, "preview_pixel_size", text="Viewport Pixel Size")
     col.prop(s, "gi_quality")
     sub = col.column()
     sub.active = s.gi_quality != 'OFF'
@@ -117,7 +120,7 @@ class RENDER_PT_lumen_gi(bpy.types.Panel):
         layout.use_property_split = True
         layout.use_property_decorate = False
         s = context.scene.lumen
-        draw_gi_settings(layout, s)
+        draw_gi_settings(layout, s, context.scene.render)
         layout.prop(s, "debug_view")
         draw_memory(layout, context.scene)
 

@@ -12,6 +12,13 @@ from ..lumen_addon.sdf import DEFAULT_MAX_RESOLUTION, HARD_MAX_RESOLUTION
 INT_MAX = 2 ** 31 - 1   # IntProperty is 32-bit; stats beyond it are clamped for display
 
 
+GI_QUALITY_ITEMS = (
+    ('OFF', "Off", "Direct light and SDF sky occlusion only"),
+    ('LOW', "Low", "A 16 px screen-probe grid, 32^3 global SDF clipmaps"),
+    ('MEDIUM', "Medium", "A 16 px screen-probe grid, 48^3 clipmaps"),
+    ('HIGH', "High", "An 8 px screen-probe grid, 64^3 clipmaps"))
+
+
 class LumenSceneSettings(bpy.types.PropertyGroup):
     __slots__ = ()   # Blender 5 warns about property groups that accept arbitrary attributes
 
@@ -72,12 +79,12 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                 "pixel's plane, red: fallback (no probe on that plane)")),
         default='COMBINED')
     gi_quality: EnumProperty(
-        name="GI Quality", description="Budgets of the global illumination passes",
-        items=(('OFF', "Off", "Direct light and SDF sky occlusion only"),
-               ('LOW', "Low", "A 16 px screen-probe grid, 32^3 global SDF clipmaps"),
-               ('MEDIUM', "Medium", "A 16 px screen-probe grid, 48^3 clipmaps"),
-               ('HIGH', "High", "An 8 px screen-probe grid, 64^3 clipmaps")),
-        default='MEDIUM')
+        name="Render Quality", description="Budgets of the global illumination passes in F12 "
+        "renders", items=GI_QUALITY_ITEMS, default='MEDIUM')
+    viewport_gi_quality: EnumProperty(
+        name="Viewport Quality", description="Budgets of the global illumination passes in the "
+        "viewport (as Render Quality, the still viewport converges to the F12 image)",
+        items=GI_QUALITY_ITEMS, default='MEDIUM')
     gi_gather: EnumProperty(
         name="Final Gather", description="How pixels gather indirect light",
         items=(('PROBES', "Screen Probes", "Lumen's screen probes: few rays, filtered, SH"),

@@ -1,0 +1,131 @@
+"""The viewport path headless: LumenGIRenderEngine.view_draw called inside a render() that holds
+a GPU context, with a GPUOffScreen bound and a duck-typed context (region, region_data,
+space_data). Checks that redraws of a still view converge to the F12 image of the same camera,
+that Blender's viewport Pixel Size renders the frame at 1/ps per side and still fills the region,
+and that the viewport uses its own GI quality."""
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path[:0] = [str(HERE.parent / "blender")]
+
+from blender_runner import run_python  # noqa: E402
+
+SIZE = 64
+
+SNIPPET = f"""
+import types
+import gpu
+import mathutils
+from lumen_gi.gpu_shaders import engine
+
+scene = empty_scene(voxel_density=12.0, cache_dir="cache")
+bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, -0.05))
+floor = bpy.context.object
+floor.scale = (4.0, 4.0, 0.1)
+bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
+floor.data.materials.append(principled("FloorMat", (0.8, 0.8, 0.8)))
+box = cube("Box", 0.8, (-0.8, 0.0, 0.4))
+box.data.materials.append(principled("BoxMat", (0.9, 0.05, 0.05)))
+sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
+sun.data.energy = 3.0
+sun.rotation_euler = (0.5, 0.3, 0.0)
+cam = link(bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam")))
+scene.camera = cam
+cam.location = (0.0, -5.0, 4.0)
+cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.3)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+scene.render.engine = "LUMEN_GI"
+scene.lumen.gi_quality = "LOW"
+scene.lumen.viewport_gi_quality = "LOW"
+scene.render.resolution_x = scene.render.resolution_y = {SIZE}
+scene.render.resolution_percentage = 100
+res, err = bake()
+assert err is None, err
+
+bpy.ops.render.render()
+R = engine.LAST_RENDER
+assert "error" not in R, R.get("traceback", R.get("error"))
+f12 = R["combined"].copy()
+
+OUT = {{}}
+
+class ViewTest(engine.LumenGIRenderEngine):
+    bl_idname = "LUMEN_GI_VIEW_TEST"
+    bl_label = "Lumen GI view_draw test"
+
+    def render(self, depsgraph):
+        try:
+            vp, cam_pos, clip_end = engine.view_projection(depsgraph, scene.camera, {SIZE}, {SIZE})
+            ctx = types.SimpleNamespace(
+                region=types.SimpleNamespace(width={SIZE}, height={SIZE}),
+                region_data=types.SimpleNamespace(
+                    perspective_matrix=mathutils.Matrix(np.asarray(vp).tolist()),
+                    view_matrix=scene.camera.matrix_world.inverted()),
+                space_data=types.SimpleNamespace(clip_end=clip_end),
+                preferences=bpy.context.preferences)
+            off = gpu.types.GPUOffScreen({SIZE}, {SIZE}, format='RGBA16F')
+            draws = []
+            for i in range(OUT["redraws"]):
+                with off.bind(), gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+                    fb = gpu.state.active_framebuffer_get()
+                    fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+                    # region pixel space, as Blender sets it up before a viewport's view_draw
+                    gpu.matrix.load_identity()
+                    gpu.matrix.load_projection_matrix(mathutils.Matrix((
+                        (2.0 / {SIZE}, 0.0, 0.0, -1.0), (0.0, 2.0 / {SIZE}, 0.0, -1.0),
+                        (0.0, 0.0, -1.0, 0.0), (0.0, 0.0, 0.0, 1.0))))
+                    self.view_draw(ctx, depsgraph)
+                R = engine.LAST_RENDER
+                assert "error" not in R, R.get("error")
+                draws.append(dict(converged=R.get("gi_converged"), width=R["width"],
+                                  height=R["height"], quality=R["gi_settings"]["quality"],
+                                  pixel_size=R.get("pixel_size")))
+            OUT["draws"] = draws
+            OUT["frame"] = engine.LAST_RENDER["combined"].copy()
+            OUT["drawn"] = np.asarray(off.texture_color.read().to_list(), np.float32)
+        except Exception:
+            import traceback
+            OUT["error"] = traceback.format_exc()
+
+bpy.utils.register_class(ViewTest)
+results = {{}}
+for label, ps, redraws in (("full", "1", 24), ("half", "2", 2)):
+    scene.render.preview_pixel_size = ps
+    scene.render.engine = "LUMEN_GI_VIEW_TEST"
+    OUT.clear()
+    OUT["redraws"] = redraws
+    bpy.ops.render.render()
+    assert "error" not in OUT, OUT["error"]
+    results[label] = OUT["draws"]
+    np.save(label + "_frame.npy", OUT["frame"])
+    np.save(label + "_drawn.npy", OUT["drawn"])
+np.save("f12.npy", f12)
+emit(results=results)
+"""
+
+
+def rel_mse(a, b):
+    a, b = np.asarray(a, np.float64)[..., :3], np.asarray(b, np.float64)[..., :3]
+    return float(((a - b) ** 2).mean() / max((b ** 2).mean(), 1e-30))
+
+
+def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
+    res = run_python(SNIPPET, tmp_path, timeout=900)
+    assert res.returncode == 0, res.explain()
+    full, half = res.result["results"]["full"], res.result["results"]["half"]
+    f12 = np.load(tmp_path / "f12.npy")
+
+    # a still view refines, says when it is done, and then equals F12 of the same camera
+    assert full[0]["converged"] is False and full[-1]["converged"] is True, full
+    assert all(d["quality"] == "LOW" and d["width"] == 64 for d in full)
+    err = rel_mse(np.load(tmp_path / "full_frame.npy"), f12)
+    assert err < 0.01, f"converged viewport against F12: relMSE {err:.4f}"
+    drawn = np.load(tmp_path / "full_drawn.npy")
+    assert drawn.shape[:2] == (64, 64) and (drawn[..., 3] > 0.5).mean() > 0.99
+
+    # Pixel Size 2: the frame runs at 32x32 and is drawn over the whole 64x64 region
+    assert all(d["width"] == 32 and d["height"] == 32 and d["pixel_size"] == 2 for d in half), half
+    drawn = np.load(tmp_path / "half_drawn.npy")
+    assert (drawn[..., 3] > 0.5).mean() > 0.99, "the reduced frame does not fill the region"
