@@ -10,7 +10,11 @@ everything a viewport redraw runs: G-buffer, direct light with SDF shadows and o
 (surface cache direct + radiosity probes + screen probes; `--quality`, render_frames = bounces = 1,
 so F12 does exactly one GI frame). A converged F12 render is render_frames + bounces - 1 of those.
 
-    ./lumen bench frame_time [--size 256] [--repeat 5]
+With `--viewport W H` it also times the viewport path: the engine's own view_draw at W x H
+(tools/viewport_harness.py: offscreen, duck-typed context, one GI iteration per redraw) at viewport
+Pixel Size 1 and 2, against EEVEE's 1-sample render at W x H.
+
+    ./lumen bench frame_time [--size 256] [--repeat 5] [--viewport 640 360]
 """
 from __future__ import annotations
 
@@ -82,6 +86,8 @@ def main():
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--quality", default="MEDIUM", choices=("OFF", "LOW", "MEDIUM", "HIGH"))
+    ap.add_argument("--viewport", type=int, nargs=2, metavar=("W", "H"),
+                    help="also time view_draw at W x H (Pixel Size 1 and 2) against EEVEE at W x H")
     args = ap.parse_args()
 
     import tempfile
@@ -112,12 +118,25 @@ def main():
                      if k in R}
         if "gi_timings" in R:
             breakdown.update({"gi_" + k: round(v * 1000, 1) for k, v in R["gi_timings"].items()})
+        viewport = {}
+        if args.viewport:
+            import viewport_harness
+            vw, vh = args.viewport
+            scene.lumen.viewport_gi_quality = args.quality
+            for ps in ("1", "2"):
+                scene.render.preview_pixel_size = ps
+                out = viewport_harness.run(scene, engine.LumenGIRenderEngine, vw, vh,
+                                           redraws=args.repeat + 1)
+                viewport[ps] = out["seconds"]
         eevee_id = [i.identifier for i in
                     bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
                     if i.identifier.startswith("BLENDER_EEVEE")][0]
         scene.render.engine = eevee_id
         scene.eevee.taa_render_samples = 1
         eevee = time_renders(args.repeat)
+        if args.viewport:
+            scene.render.resolution_x, scene.render.resolution_y = args.viewport
+            eevee_view = time_renders(args.repeat)
 
     m_ours, m_eevee = statistics.median(ours[1:]), statistics.median(eevee[1:])
     print(f"scene: {len(scene.objects)} objects, {R['triangles']} triangles, bake "
@@ -127,6 +146,14 @@ def main():
     print(f"{eevee_id:14s} warm-up {eevee[0] * 1000:8.1f} ms, median {m_eevee * 1000:8.1f} ms "
           f"(1 render sample)")
     print(f"ratio LUMEN_GI / {eevee_id} = {m_ours / m_eevee:.3f}")
+    if args.viewport:
+        m_ev = statistics.median(eevee_view[1:])
+        vw, vh = args.viewport
+        print(f"viewport {vw}x{vh}: {eevee_id} 1 sample median {m_ev * 1000:.1f} ms")
+        for ps, times in viewport.items():
+            m = statistics.median(times[1:])
+            print(f"  LUMEN_GI view_draw, Pixel Size {ps}: first {times[0] * 1000:.1f} ms, "
+                  f"median {m * 1000:.1f} ms, ratio to EEVEE {m / m_ev:.3f}")
 
 
 if __name__ == "__main__":

@@ -16,8 +16,6 @@ from blender_runner import run_python  # noqa: E402
 SIZE = 64
 
 SNIPPET = f"""
-import types
-import gpu
 import mathutils
 from lumen_gi.gpu_shaders import engine
 
@@ -49,58 +47,21 @@ R = engine.LAST_RENDER
 assert "error" not in R, R.get("traceback", R.get("error"))
 f12 = R["combined"].copy()
 
-OUT = {{}}
+import viewport_harness
 
-class ViewTest(engine.LumenGIRenderEngine):
-    bl_idname = "LUMEN_GI_VIEW_TEST"
-    bl_label = "Lumen GI view_draw test"
+def state(i):
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("error")
+    return dict(converged=R.get("gi_converged"), width=R["width"], height=R["height"],
+                quality=R["gi_settings"]["quality"], pixel_size=R.get("pixel_size"))
 
-    def render(self, depsgraph):
-        try:
-            vp, cam_pos, clip_end = engine.view_projection(depsgraph, scene.camera, {SIZE}, {SIZE})
-            ctx = types.SimpleNamespace(
-                region=types.SimpleNamespace(width={SIZE}, height={SIZE}),
-                region_data=types.SimpleNamespace(
-                    perspective_matrix=mathutils.Matrix(np.asarray(vp).tolist()),
-                    view_matrix=scene.camera.matrix_world.inverted()),
-                space_data=types.SimpleNamespace(clip_end=clip_end),
-                preferences=bpy.context.preferences)
-            off = gpu.types.GPUOffScreen({SIZE}, {SIZE}, format='RGBA16F')
-            draws = []
-            for i in range(OUT["redraws"]):
-                with off.bind(), gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
-                    fb = gpu.state.active_framebuffer_get()
-                    fb.clear(color=(0.0, 0.0, 0.0, 0.0))
-                    # region pixel space, as Blender sets it up before a viewport's view_draw
-                    gpu.matrix.load_identity()
-                    gpu.matrix.load_projection_matrix(mathutils.Matrix((
-                        (2.0 / {SIZE}, 0.0, 0.0, -1.0), (0.0, 2.0 / {SIZE}, 0.0, -1.0),
-                        (0.0, 0.0, -1.0, 0.0), (0.0, 0.0, 0.0, 1.0))))
-                    self.view_draw(ctx, depsgraph)
-                R = engine.LAST_RENDER
-                assert "error" not in R, R.get("error")
-                draws.append(dict(converged=R.get("gi_converged"), width=R["width"],
-                                  height=R["height"], quality=R["gi_settings"]["quality"],
-                                  pixel_size=R.get("pixel_size")))
-            OUT["draws"] = draws
-            OUT["frame"] = engine.LAST_RENDER["combined"].copy()
-            OUT["drawn"] = np.asarray(off.texture_color.read().to_list(), np.float32)
-        except Exception:
-            import traceback
-            OUT["error"] = traceback.format_exc()
-
-bpy.utils.register_class(ViewTest)
 results = {{}}
 for label, ps, redraws in (("full", "1", 24), ("half", "2", 2)):
     scene.render.preview_pixel_size = ps
-    scene.render.engine = "LUMEN_GI_VIEW_TEST"
-    OUT.clear()
-    OUT["redraws"] = redraws
-    bpy.ops.render.render()
-    assert "error" not in OUT, OUT["error"]
-    results[label] = OUT["draws"]
-    np.save(label + "_frame.npy", OUT["frame"])
-    np.save(label + "_drawn.npy", OUT["drawn"])
+    out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, redraws, state)
+    results[label] = out["after"]
+    np.save(label + "_frame.npy", engine.LAST_RENDER["combined"])
+    np.save(label + "_drawn.npy", out["drawn"])
 np.save("f12.npy", f12)
 emit(results=results)
 """

@@ -1,0 +1,94 @@
+"""Call a RenderEngine's `view_draw` headless, as the 3D viewport would (tests and benchmarks).
+
+Blender gives a RenderEngine with `bl_use_gpu_context` a GPU context inside `render()` even in
+background mode, but never calls `view_draw` without a window. So `run()` registers a subclass of
+the engine whose `render()` binds a GPUOffScreen of the region's size, sets the region's pixel
+projection (what Blender does before a viewport's `view_draw`) and calls the engine's own
+`view_draw` with a duck-typed context: region (width, height), region_data (perspective_matrix,
+view_matrix of the scene camera), space_data (clip_end) and preferences.
+
+    result = run(scene, LumenGIRenderEngine, 640, 360, redraws=4, on_redraw=callback)
+    result["drawn"]     float32 [h, w, 4]: the offscreen after the last redraw (display space)
+    result["seconds"]   wall time of each view_draw call
+    result["after"]     what on_redraw(i) returned after each redraw
+"""
+from __future__ import annotations
+
+import time
+import types
+
+_JOB: dict = {}
+_CLASSES: dict = {}
+
+
+def _engine_class(base):
+    if base not in _CLASSES:
+        class ViewDraw(base):
+            bl_idname = base.bl_idname + "_VIEW_DRAW"
+            bl_label = base.bl_label + " (view_draw harness)"
+
+            def render(self, depsgraph):
+                try:
+                    _JOB["result"] = _draw(self, depsgraph, **_JOB["args"])
+                except Exception:   # reported to the caller, never raised into Blender
+                    import traceback
+                    _JOB["error"] = traceback.format_exc()
+
+        import bpy
+        bpy.utils.register_class(ViewDraw)
+        _CLASSES[base] = ViewDraw
+    return _CLASSES[base]
+
+
+def _draw(engine, depsgraph, width, height, redraws, on_redraw):
+    import bpy
+    import gpu
+    import mathutils
+    import numpy as np
+
+    scene = depsgraph.scene
+    cam = scene.camera.evaluated_get(depsgraph)
+    view = cam.matrix_world.inverted()
+    proj = cam.calc_matrix_camera(depsgraph, x=width, y=height)
+    ctx = types.SimpleNamespace(
+        region=types.SimpleNamespace(width=width, height=height),
+        region_data=types.SimpleNamespace(perspective_matrix=proj @ view, view_matrix=view),
+        space_data=types.SimpleNamespace(clip_end=cam.data.clip_end),
+        preferences=bpy.context.preferences)
+    pixels = mathutils.Matrix(((2.0 / width, 0.0, 0.0, -1.0), (0.0, 2.0 / height, 0.0, -1.0),
+                               (0.0, 0.0, -1.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
+    off = gpu.types.GPUOffScreen(width, height, format='RGBA16F')
+    seconds, after = [], []
+    for i in range(redraws):
+        with off.bind(), gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+            gpu.state.active_framebuffer_get().clear(color=(0.0, 0.0, 0.0, 0.0))
+            gpu.matrix.load_identity()
+            gpu.matrix.load_projection_matrix(pixels)
+            t = time.perf_counter()
+            engine.view_draw(ctx, depsgraph)
+            seconds.append(time.perf_counter() - t)
+        after.append(on_redraw(i) if on_redraw else None)
+    drawn = np.asarray(off.texture_color.read().to_list(), np.float32).reshape(height, width, 4)
+    return {"drawn": drawn, "seconds": seconds, "after": after}
+
+
+def run(scene, base, width: int, height: int, redraws: int = 1, on_redraw=None) -> dict:
+    """`redraws` view_draw calls of engine class `base` for the scene camera's view at
+    width x height (see the module docstring). Raises RuntimeError with the traceback on failure."""
+    import bpy
+
+    cls = _engine_class(base)
+    before = scene.render.engine
+    _JOB.clear()
+    _JOB["args"] = dict(width=int(width), height=int(height), redraws=int(redraws),
+                        on_redraw=on_redraw)
+    scene.render.engine = cls.bl_idname
+    try:
+        bpy.ops.render.render()
+    finally:
+        scene.render.engine = before
+    if "error" in _JOB:
+        raise RuntimeError(_JOB["error"])
+    if "result" not in _JOB:
+        raise RuntimeError("the view_draw harness engine did not render")
+    return _JOB["result"]
