@@ -12,7 +12,7 @@ from __future__ import annotations
 import gpu
 import numpy as np
 
-from .resources import SceneResources, glsl
+from .resources import SceneResources, glsl, read_texture
 
 GROUP = 8
 _SHADERS = {}
@@ -100,7 +100,7 @@ def dispatch(sh, width: int, height: int):
 
 def read(tex) -> np.ndarray:
     """float32 [h, w, C] of a 2D texture (waits for the GPU)."""
-    return np.asarray(tex.read().to_list(), np.float32).reshape(tex.height, tex.width, -1)
+    return read_texture(tex)
 
 
 def vec(v, n=3):

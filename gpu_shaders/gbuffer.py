@@ -22,6 +22,7 @@ import gpu
 import numpy as np
 from gpu_extras.batch import batch_for_shader
 
+from . import resources
 from .resources import glsl
 
 ATTACHMENTS = ("position", "normal", "albedo", "emission")
@@ -138,7 +139,7 @@ def scene_triangles(objects):
 
 
 def read_texture(tex, width, height):
-    return np.asarray(tex.read().to_list(), np.float32).reshape(height, width, -1)
+    return resources.read_texture(tex, (height, width, -1))
 
 
 def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=None) -> dict:
@@ -207,7 +208,7 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
            "textures_resident": len(cache)}
     for name in ATTACHMENTS:
         out[name] = read_texture(textures[name], width, height)
-    out["depth"] = np.asarray(depth.read().to_list(), np.float32).reshape(height, width)
+    out["depth"] = resources.read_texture(depth, (height, width))
     out["draw_seconds"] = time.perf_counter() - t1
     out["seconds"] = time.perf_counter() - t0
     return out

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import compute
 from .global_sdf_ref import BAND_VOXELS, LEVELS, level_origin, level_voxel
-from .resources import SceneResources, float_buffer, glsl
+from .resources import SceneResources, float_buffer, glsl, read_texture
 
 GROUP = 4
 UBO_SLOT = 0   # GlobalSDFParams' binding; no other pass library declares a uniform block
@@ -144,7 +144,7 @@ class GlobalSDF:
         sh.uniform_sampler('src', self.textures[level])
         sh.image('dst', flat)
         compute.run(sh, -(-n // 8), -(-n * n // 8), 1)
-        return np.asarray(flat.read().to_list(), np.float32).reshape(n, n, n)
+        return read_texture(flat, (n, n, n))
 
     def stats(self) -> dict:
         """GPU bytes per level from the allocated textures' sizes and format."""
@@ -234,7 +234,7 @@ def trace_hybrid(gsdf: GlobalSDF, inv_view_proj, width: int, height: int, t_max:
     sh.uniform_float('t_max', float(t_max))
     sh.uniform_int('max_steps', int(max_steps))
     compute.run(sh, -(-width // 8), -(-height // 8), 1)
-    data = np.asarray(out.read().to_list(), np.float32).reshape(height, width, 4)
+    data = read_texture(out, (height, width, 4))
     return {"hit": data[..., 0].copy(), "steps": data[..., 1].astype(np.int32),
             "global_steps": data[..., 2].astype(np.int32), "seconds": time.perf_counter() - t0}
 
@@ -275,5 +275,5 @@ def sample_points(gsdf: GlobalSDF, points) -> dict:
     gsdf.bind(sh)
     sh.image('sample_out', out)
     compute.run(sh, -(-count // 64), 1, 1)
-    data = np.asarray(out.read().to_list(), np.float32).reshape(count, 4)
+    data = read_texture(out, (count, 4))
     return {"d": data[:, 0].copy(), "level": data[:, 1].astype(np.int32), "voxel": data[:, 2].copy()}

@@ -31,6 +31,20 @@ def float_buffer(array) -> "gpu.types.Buffer":
     return gpu.types.Buffer('FLOAT', a.size, a)
 
 
+def read_texture(tex, shape=None) -> np.ndarray:
+    """float32 copy of a texture's contents (waits for the GPU), [height, width, channels] unless
+    `shape` says otherwise (e.g. [n, n, n] for a flattened 3D texture).
+
+    Reads the gpu.types.Buffer through the buffer protocol: 0.3-0.5 ms for 640x360 RGBA32F,
+    against 250-370 ms for Buffer.to_list() (measured on bpy 4.2.0, 5.0.1, 5.3.0). Blender up to
+    5.0 reports a C-ordered buffer with reversed (Fortran) strides, 5.3 with C strides; ravel in
+    memory order ('K') is the texels in row order either way."""
+    flat = np.asarray(tex.read()).ravel(order='K')
+    if shape is None:
+        shape = (tex.height, tex.width, -1)
+    return flat.astype(np.float32).reshape(shape)
+
+
 def _copy_shader():
     from . import compute   # compute imports this module
 

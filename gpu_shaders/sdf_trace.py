@@ -49,7 +49,7 @@ def trace(resources: SceneResources, inv_view_proj, width: int, height: int, t_m
     shader.uniform_float('t_max', float(t_max))
     shader.uniform_int('max_steps', int(max_steps))
     compute.run(shader, -(-width // GROUP), -(-height // GROUP), 1)
-    data = np.asarray(out.read().to_list(), np.float32).reshape(height, width, -1)
+    data = compute.read(out)
     t2 = time.perf_counter()
     return {"hit": data[..., 0].copy(), "steps": data[..., 1].astype(np.int32),
             "compile_seconds": t1 - t0, "trace_seconds": t2 - t1,

@@ -68,7 +68,9 @@ def _draw(engine, depsgraph, width, height, redraws, on_redraw):
             engine.view_draw(ctx, depsgraph)
             seconds.append(time.perf_counter() - t)
         after.append(on_redraw(i) if on_redraw else None)
-    drawn = np.asarray(off.texture_color.read().to_list(), np.float32).reshape(height, width, 4)
+    # buffer protocol in memory order (see gpu_shaders.resources.read_texture)
+    drawn = np.asarray(off.texture_color.read()).ravel(order="K").astype(np.float32)
+    drawn = drawn.reshape(height, width, 4)
     return {"drawn": drawn, "seconds": seconds, "after": after}
 
 
