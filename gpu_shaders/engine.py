@@ -88,7 +88,8 @@ def scene_bake(scene):
         _DISK_BAKES[str(folder)] = (mtime, bake)
         return bake, str(folder)
     except CacheError as exc:
-        raise RuntimeError(f"no Lumen bake for scene {scene.name!r}: {exc}") from exc
+        raise RuntimeError(f"No bake for scene {scene.name!r}: press Bake in the 3D viewport's "
+                           f"Lumen tab (N). ({exc})") from exc
 
 
 def view_projection(depsgraph, camera, width: int, height: int):
@@ -136,6 +137,20 @@ def debug_view(scene) -> str:
     if view == "COMBINED" and scene.get(VIEW_PROPERTY) == "DEPTH":
         view = "DEPTH"
     return view
+
+
+def draw_message(text: str, width: int, height: int):
+    """A line of text in the viewport's top-left corner (no bake, a failed frame): the viewport
+    must say why it shows nothing. Long messages are cut to the region's width."""
+    import blf
+
+    font = 0
+    blf.size(font, 13)
+    blf.color(font, 1.0, 1.0, 1.0, 1.0)
+    limit = max(int(width / 7), 16)
+    text = text if len(text) <= limit else text[:limit - 1] + "…"
+    blf.position(font, 12, max(height - 24, 4), 0)
+    blf.draw(font, text)
 
 
 def pixel_size(scene, context=None) -> int:
@@ -395,6 +410,7 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
                         final=False)["Combined"]
         except Exception as exc:
             LAST_RENDER["error"] = str(exc)
+            draw_message(f"Lumen GI: {exc}", w, h)
             return
         LAST_RENDER["pixel_size"] = ps
         if LAST_RENDER.get("gi_converged") is False:

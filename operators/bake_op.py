@@ -7,6 +7,7 @@ ERROR report and {'CANCELLED'}: nothing is written and the previous cache stays 
 Extraction warnings (materials that fall back to a colour, missing images, missing UVs) are
 reported as WARNINGs and counted in the status line.
 """
+import os
 import tempfile
 import threading
 import traceback
@@ -41,6 +42,8 @@ def resolve_folder(path: str, default_name: str = "lumen_cache") -> Path:
     folder (not `bpy.app.tempdir`, which Blender deletes on exit).
     """
     raw = (path or "").strip() or f"//{default_name}"
+    if raw.startswith("~"):
+        raw = os.path.expanduser(raw)      # "~/x" is the home folder, not a folder named "~"
     if raw.startswith("//") and not bpy.data.filepath:
         rel = raw[2:].strip("/\\") or default_name
         return Path(tempfile.gettempdir()) / "lumen_gi" / rel

@@ -229,3 +229,22 @@ def test_panel_draws_existing_properties_and_operators(blender):
     for log in (r["gi_log"], r["render_log"]):               # engine chosen: GI controls shown
         names = [name for kind, name in log if kind == "prop"]
         assert all(name in names for name in gi), names
+
+
+def test_paths_starting_with_tilde_mean_the_home_folder(blender, tmp_path):
+    """export_cache(filepath="~/x") and a cache folder "~/y" write under $HOME, never into a
+    folder literally named "~"."""
+    home = tmp_path / "home"
+    home.mkdir()
+    res = blender(f"""
+        import os
+        scene = empty_scene(cache_dir="~/lumen_tilde_cache")
+        cube("Box")
+        out = dict(bake=bake(), export=bake(bpy.ops.lumen.export_cache, filepath="~/lumen_tilde_export"))
+        emit(literal=os.path.exists("~"), **out)
+    """, env={"HOME": str(home)})
+    r = res.result
+    assert r["bake"] == r["export"] == [["FINISHED"], None], r
+    assert (home / "lumen_tilde_cache" / "manifest.json").is_file()
+    assert (home / "lumen_tilde_export" / "manifest.json").is_file()
+    assert not r["literal"], "a folder named '~' was made in the working directory"

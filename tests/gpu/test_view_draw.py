@@ -90,3 +90,34 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
     assert all(d["width"] == 32 and d["height"] == 32 and d["pixel_size"] == 2 for d in half), half
     drawn = np.load(tmp_path / "half_drawn.npy")
     assert (drawn[..., 3] > 0.5).mean() > 0.99, "the reduced frame does not fill the region"
+
+
+NO_BAKE = f"""
+import mathutils
+import viewport_harness
+from lumen_gi.gpu_shaders import engine
+
+scene = empty_scene(voxel_density=12.0, cache_dir="never_baked")
+cube("Box", 0.8, (0.0, 0.0, 0.4))
+cam = link(bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam")))
+scene.camera = cam
+cam.location = (0.0, -5.0, 4.0)
+cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.3)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+scene.render.engine = "LUMEN_GI"
+out = viewport_harness.run(scene, engine.LumenGIRenderEngine, 256, 64)
+np.save("drawn.npy", out["drawn"])
+emit(error=engine.LAST_RENDER.get("error", ""))
+"""
+
+
+def test_view_draw_without_a_bake_says_so(tmp_path):
+    """An unbaked scene: the viewport draws a line of text saying to press Bake, not nothing."""
+    res = run_python(NO_BAKE, tmp_path, timeout=300)
+    assert res.returncode == 0, res.explain()
+    assert res.result["error"].startswith("No bake for scene"), res.result
+    assert "press Bake" in res.result["error"]
+    drawn = np.load(tmp_path / "drawn.npy")
+    text = drawn[..., :3].max(-1) > 0.5
+    assert text.sum() > 50, "nothing was drawn"
+    rows = np.nonzero(text.any(1))[0]
+    assert rows.min() >= 64 - 30, f"the message is not in the top-left corner (rows {rows.min()}..)"
