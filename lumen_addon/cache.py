@@ -26,6 +26,23 @@ from .sdf import BAND_VOXELS, BRICK, BRICK_CELLS, INVALID_INSIDE, MeshSDF, SDFMi
 FORMAT = "lumen-gi-cache"
 VERSION = 2
 MANIFEST = "manifest.json"
+LOCK = ".lumen-lock"
+MAX_MANIFEST_BYTES = 64 << 20
+
+
+def _umask() -> int:
+    """The process umask, read without changing it where the OS says it (os.umask(0) and back
+    would leave a window in which another thread creates files world-writable)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 class CacheError(Exception):
@@ -41,6 +58,13 @@ def write_cache(folder, bake: SceneBake) -> Path:
         raise CacheError(f"cannot create cache folder {folder}: {exc.strerror or exc}") from exc
     if not os.access(folder, os.W_OK):
         raise CacheError(f"cache folder {folder} is not writable")
+    _own_files(folder)                     # refuse another tool's folder before writing anything
+    with _folder_lock(folder):
+        return _write_locked(folder, bake)
+
+
+def _write_locked(folder: Path, bake: SceneBake) -> Path:
+    previous = _own_files(folder)          # again under the lock: another writer may have been first
 
     arrays, meshes = {}, []
     for i, (key, sdf) in enumerate(bake.meshes.items()):
@@ -88,13 +112,72 @@ def write_cache(folder, bake: SceneBake) -> Path:
         _atomic_write(folder / MANIFEST, json.dumps(manifest, indent=1).encode())
     except OSError as exc:
         raise CacheError(f"cannot write cache in {folder}: {exc.strerror or exc}") from exc
-    for stale in [*folder.glob("sdf-*.npz"), *folder.glob("atlas-*")]:
-        if stale.name not in keep:
-            try:
-                stale.unlink()
-            except OSError:
-                pass   # an old file left behind is harmless: no manifest names it
+    for name in previous - keep:            # only files our previous manifest named
+        try:
+            (folder / name).unlink()
+        except OSError:
+            pass   # an old file left behind is harmless: no manifest names it
     return folder / MANIFEST
+
+
+def _own_files(folder: Path) -> set:
+    """The data files the folder's current manifest names, if Lumen GI wrote it (empty without a
+    manifest). A manifest.json of another tool (not JSON, or another "format") is a CacheError:
+    we never overwrite it, nor delete any file that our own manifest did not name."""
+    path = folder / MANIFEST
+    if not path.exists():
+        return set()
+    try:
+        if not path.is_file() or path.stat().st_size > MAX_MANIFEST_BYTES:
+            raise ValueError("not a manifest of ours")
+        old = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(old, dict) or old.get("format") != FORMAT:
+            raise ValueError("another format")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise CacheError(f"{path} was not written by Lumen GI ({exc}); choose an empty folder or "
+                         f"one of Lumen GI's caches") from exc
+    names = set()
+    sdf = old.get("sdf")
+    if isinstance(sdf, dict) and isinstance(sdf.get("file"), str):
+        names.add(sdf["file"])
+    layers = (old.get("atlas") or {}).get("layers") if isinstance(old.get("atlas"), dict) else None
+    for entry in (layers or {}).values() if isinstance(layers, dict) else ():
+        if isinstance(entry, dict) and isinstance(entry.get("file"), str):
+            names.add(entry["file"])
+    # only plain names of our own patterns: a crafted manifest cannot point the clean-up elsewhere
+    return {n for n in names if n == Path(n).name and (n.startswith("sdf-") and n.endswith(".npz")
+                                                        or n.startswith("atlas-"))}
+
+
+class _folder_lock:
+    """An exclusive lock on <folder>/.lumen-lock for one writer at a time (POSIX flock; where
+    that is unavailable, no lock: one writer per folder is then the user's to keep)."""
+
+    def __init__(self, folder: Path):
+        self.path = folder / LOCK
+        self.fh = None
+
+    def __enter__(self):
+        try:
+            import fcntl
+        except ImportError:
+            return self
+        try:
+            self.fh = open(self.path, "a+b")
+            fcntl.flock(self.fh.fileno(), fcntl.LOCK_EX)
+        except OSError as exc:
+            if self.fh:
+                self.fh.close()
+            raise CacheError(f"cannot lock cache folder {self.path.parent}: "
+                             f"{exc.strerror or exc}") from exc
+        return self
+
+    def __exit__(self, *exc):
+        if self.fh is not None:
+            import fcntl
+            fcntl.flock(self.fh.fileno(), fcntl.LOCK_UN)
+            self.fh.close()
+        return False
 
 
 def _write_atlas(folder: Path, bake: SceneBake) -> dict:
@@ -148,6 +231,7 @@ def _atomic_write(path: Path, data: bytes):
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())    # as open() would: teammates can read an export
         os.replace(tmp, path)
     except BaseException:
         try:
