@@ -52,7 +52,8 @@ def run(sh, groups_x: int, groups_y: int = 1, groups_z: int = 1):
 def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), scene=False,
            surface_cache=False, global_sdf=False):
     """The compute shader of glsl/<name>.comp.glsl (cached by name). images: names or
-    (name, format); push: (type, name)."""
+    (name, format) or (name, format, qualifiers such as {'READ', 'WRITE'}: write-only unless
+    given); push: (type, name)."""
     if name in _SHADERS:
         return _SHADERS[name]
     info = new_info()
@@ -74,8 +75,8 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
         info.sampler(slot, 'FLOAT_2D', s)
         slot += 1
     for k, im in enumerate(images):
-        im_name, fmt = (im, 'RGBA32F') if isinstance(im, str) else im
-        info.image(k, fmt, 'FLOAT_2D', im_name, qualifiers={'WRITE'})
+        im_name, fmt, access = (im, 'RGBA32F', {'WRITE'}) if isinstance(im, str) else (*im, {'WRITE'})[:3]
+        info.image(k, fmt, 'FLOAT_2D', im_name, qualifiers=set(access))
     for kind, pname in push:
         info.push_constant(kind, pname)
     src += [glsl(lib) for lib in libs] + [glsl(name + ".comp.glsl")]

@@ -232,12 +232,14 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
     if gi_cfg.enabled:
         view_key = (np.asarray(view_proj, np.float64).tobytes(), width, height)
         gi_out = gi.indirect_light(state, gbuf, gi_cfg, view_key, cam_pos, sky,
-                                   min(float(clip_end), 100.0), width, height, changes, final)
+                                   min(float(clip_end), 100.0), width, height, changes, final,
+                                   view_proj=view_proj)
         comp = composite.composite(gbuf, out["textures"]["direct"], gi_out["texture"], sky,
                                    width, height)
         indirect, combined = comp["indirect"], comp["combined"]
         gi_info = dict(gi_seconds=gi_out["timings"]["total"], gi_timings=gi_out["timings"],
                        gi_iterations=gi_out["iterations"], gi_converged=gi_out["converged"],
+                       gi_sc_tiles=(gi_out["sc_tiles"], gi_out["sc_tiles_total"]),
                        gi_settings=gi_cfg.__dict__.copy())
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
             LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])

@@ -2,7 +2,9 @@
 
     global SDF clipmaps  (global_sdf.py: rebuilt when objects moved, levels on their cadence)
     surface cache        direct light per card texel, then per iteration: indirect rays reading
-                         last iteration's final light (one more bounce each time), combine
+                         last iteration's final light (one more bounce each time), combine;
+                         the viewport relights a budget of tiles per frame by priority
+                         (surface_cache_pages.py), F12 every tile
     screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py)
 
 `indirect_light` returns the per-pixel indirect irradiance texture. For F12 renders
@@ -41,9 +43,10 @@ def _probes(state, gi: GISettings, width: int, height: int):
 
 
 def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_max: float,
-                   width: int, height: int, changes: set, final: bool) -> dict:
+                   width: int, height: int, changes: set, final: bool, view_proj=None) -> dict:
     """Run the GI passes; returns {'texture': per-pixel E_indirect, 'timings': {...},
-    'iterations': n, 'converged': bool (viewport: history full)}."""
+    'iterations': n, 'sc_tiles': surface-cache tiles relit (all iterations), 'sc_tiles_total',
+    'converged': bool (viewport: probe history full and every tile updated `history` times)}."""
     t0 = time.perf_counter()
     res, cache = state.resources, state.surface_cache
     gsdf = _global_sdf(state, gi)
@@ -69,7 +72,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         sc_blend = max(1.0 / (n + 1), 1.0 / gi.history)
         m = probes.history is not None and probes.frames or 0
         schedule = [(sc_blend, max(1.0 / (m + 1), 1.0 / gi.history))]
-    result = None
+    result, relit = None, 0
     for sc_blend, px_blend in schedule:
         frame = state.gi_frame
         state.gi_frame += 1
@@ -78,7 +81,14 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         objects_changed = False
         b = time.perf_counter()
         if sc_blend is not None:
-            cache.light_indirect(res, gsdf, sky, frame, sc_blend, t_max)
+            if final:      # F12: every tile, every iteration (deterministic)
+                tiles = cache.light_indirect(res, gsdf, sky, frame, sc_blend, t_max)
+            else:          # viewport: the budget's tiles by priority
+                where = dict(instance_spheres=res.packed.objects[:, 8], view_proj=view_proj,
+                             cam_pos=cam_pos)
+                tiles = cache.light_indirect(res, gsdf, sky, frame, sc_blend, t_max,
+                                             budget=gi.sc_tiles, history=gi.history, where=where)
+            relit += tiles
             cache.combine(res)
         c = time.perf_counter()
         if px_blend is not None:
@@ -94,4 +104,6 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         timings["probes"] += time.perf_counter() - c
     timings.update(setup=t1 - t0, sc_direct=t2 - t1, total=time.perf_counter() - t0)
     return {"texture": result, "timings": timings, "iterations": len(schedule),
-            "converged": final or probes.frames >= gi.history}
+            "sc_tiles": relit, "sc_tiles_total": len(cache.pages),
+            "converged": final or (probes.frames >= gi.history
+                                   and cache.pages.converged(gi.history))}

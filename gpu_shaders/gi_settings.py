@@ -7,15 +7,18 @@ F12 render accumulates:
     probe_res        octahedral texels per probe side (lecture: 8 -> 64 rays per probe)
     gsdf_n, gsdf_voxel  global SDF clipmap texels per side and level-0 voxel (metres)
     history          viewport temporal filter: exponential over about this many frames
+    sc_tiles         viewport surface-cache budget: tiles of 32x32 lighting texels relit per frame
+                     (surface_cache_pages.py; F12 relights all); the scene's Cache Texels per
+                     Frame overrides it
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
 PRESETS = {
-    "LOW": dict(probe_tile=16, probe_res=8, gsdf_n=32, gsdf_voxel=0.2, history=8),
-    "MEDIUM": dict(probe_tile=16, probe_res=8, gsdf_n=48, gsdf_voxel=0.125, history=12),
-    "HIGH": dict(probe_tile=8, probe_res=8, gsdf_n=64, gsdf_voxel=0.1, history=16),
+    "LOW": dict(probe_tile=16, probe_res=8, gsdf_n=32, gsdf_voxel=0.2, history=8, sc_tiles=16),
+    "MEDIUM": dict(probe_tile=16, probe_res=8, gsdf_n=48, gsdf_voxel=0.125, history=12, sc_tiles=32),
+    "HIGH": dict(probe_tile=8, probe_res=8, gsdf_n=64, gsdf_voxel=0.1, history=16, sc_tiles=64),
 }
 QUALITIES = ("OFF",) + tuple(PRESETS)
 
@@ -30,6 +33,7 @@ class GISettings:
     gsdf_n: int = 48
     gsdf_voxel: float = 0.125
     history: int = 12
+    sc_tiles: int = 32
     gather: str = "PROBES"         # PROBES (screen probes) or PIXEL (reference: rays per pixel)
     pixel_rays: int = 64           # PIXEL: cosine rays per pixel per frame
 
@@ -61,6 +65,10 @@ def from_scene(scene_settings, viewport: bool = False) -> GISettings:
     q = getattr(scene_settings, "gi_quality", "MEDIUM")
     if viewport:
         q = getattr(scene_settings, "viewport_gi_quality", q)
+    extra = {}
+    texels = int(getattr(scene_settings, "cache_texels_per_frame", 0) or 0)
+    if texels > 0:
+        extra["sc_tiles"] = -(-texels // 1024)
     return settings(q, bounces=int(getattr(scene_settings, "bounces", 3)),
                     render_frames=int(getattr(scene_settings, "render_frames", 8)),
-                    gather=str(getattr(scene_settings, "gi_gather", "PROBES")))
+                    gather=str(getattr(scene_settings, "gi_gather", "PROBES")), **extra)

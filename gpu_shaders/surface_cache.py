@@ -29,6 +29,7 @@ import numpy as np
 from . import compute
 from .card_packing import CARD_TEXELS, PackedCards, pack_cards
 from .resources import SceneResources, float_buffer
+from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule
 
 GROUP = 8
 
@@ -74,7 +75,19 @@ class SurfaceCache:
         self.indirect = self._make("indirect", (lw, lh), 'RGBA32F', zero)
         self.final = self._make("final", (lw, lh), 'RGBA32F', zero)
         self.frames = 0                # indirect passes accumulated since the last reset
-        self.probe_textures = {}       # the last indirect pass's probe rays, probes and SH
+        # Radiosity probes, kept across frames: a frame relights only some tiles (pages), the
+        # others keep their last rays, probes and SH for the filter and the interpolation.
+        gw, gh = -(-lw // 4), -(-lh // 4)
+        self.probe_textures = {
+            "rays": self._make("probe_rays", (gw * 4, gh * 4), 'RGBA32F', None),
+            "probes": self._make("probes", (gw, gh), 'RGBA32F', None),
+            "positions": self._make("probe_positions", (gw, gh), 'RGBA32F', None),
+            "sh": self._make("probe_sh", (gw * 2, gh * 2), 'RGBA32F', None),
+            "irradiance": self._make("probe_irradiance", (gw, gh), 'RGBA32F', None)}
+        self.pages = PageSchedule(self.packed.texel_card, self.packed.cards[:, 0, 0]
+                                  if self.packed.rows else np.zeros(0))
+        tw, th = self.pages.grid
+        self.tile_frame = self._make("tile_frame", (tw, th), 'R32F', self.pages.tile_frame)
         self.upload_seconds = time.perf_counter() - t0
 
     def _make(self, name, size, fmt, data):
@@ -86,11 +99,15 @@ class SurfaceCache:
         return self.packed.texels > 0
 
     def reset_lighting(self):
-        """Forget accumulated indirect light (the scene changed under it)."""
+        """Forget accumulated indirect light (the scene changed under it): every tile is then
+        first in line, and no stale probe is filtered or interpolated (cleared: 'no probe')."""
         lw, lh = self.packed.lighting_size
         zero = np.zeros((lh, lw, 4), np.float32)
         self.indirect = _tex((lw, lh), 'RGBA32F', zero)
         self.final = _tex((lw, lh), 'RGBA32F', zero)
+        for tex in self.probe_textures.values():
+            tex.clear(format='FLOAT', value=(0.0, 0.0, 0.0, 0.0))
+        self.pages.reset()
         self.frames = 0
 
     # --- binding for other passes ------------------------------------------------------------
@@ -130,66 +147,81 @@ class SurfaceCache:
         self._dispatch(sh)
 
     def light_indirect(self, resources: SceneResources, gsdf, sky, frame: int, blend: float,
-                       t_max: float):
-        """E_indirect = mix(last E_indirect, this frame's probes, blend), in three passes:
-        surface_cache_probe_trace (16 rays per probe of 4x4 texels, surface cache at hits),
-        surface_cache_probe_sh (3x3 probe filter, two-band SH), surface_cache_indirect (per
-        texel: 2x2 probes' SH irradiance at the texel's normal, temporal blend)."""
-        lw, lh = self.packed.lighting_size
-        gw, gh = -(-lw // 4), -(-lh // 4)
+                       t_max: float, budget: int = 0, history: int = 1, where=None) -> int:
+        """E_indirect = mix(last E_indirect, this frame's probes, blend) on the tiles relit this
+        frame, in three passes over those tiles only: surface_cache_probe_trace (16 rays per
+        probe of 4x4 texels, surface cache at hits), surface_cache_probe_sh (3x3 probe filter,
+        two-band SH), surface_cache_indirect (per texel: 2x2 probes' SH irradiance at the
+        texel's normal, temporal blend, in place).
+        budget <= 0 (F12): every tile, all with `blend`. budget > 0 (viewport): at most `budget`
+        tiles by priority (surface_cache_pages.py; `where`: instance_spheres, view_proj,
+        cam_pos), each with its own blend from its update count and `history`.
+        Returns the number of tiles relit."""
+        if budget > 0:
+            idx, blends = self.pages.choose(budget, frame, history, **(where or {}))
+        else:
+            idx = np.arange(len(self.pages))
+            blends = np.full(len(idx), float(blend))
+        if not len(idx):
+            return 0
+        self.pages.commit(idx, frame)
+        pages = _tex((len(idx), 1), 'RGBA32F', self.pages.page_table(idx, blends))
+        tw, th = self.pages.grid
+        self.tile_frame = _tex((tw, th), 'R32F', self.pages.tile_frame)
+        t = self.probe_textures
+        k = len(idx)
         probe_libs = ("sampling_lib.glsl", "sh_lib.glsl", "surface_cache_probe_lib.glsl")
-        rays, probes = _tex((gw * 4, gh * 4), 'RGBA32F'), _tex((gw, gh), 'RGBA32F')
-        probe_pos = _tex((gw, gh), 'RGBA32F')
+        page_samplers = ("sc_pages", "sc_tile_frame")
         sh = pass_shader("surface_cache_probe_trace",
-                         probe_libs + ("gi_trace_lib.glsl",), (),
+                         probe_libs + ("gi_trace_lib.glsl",), page_samplers,
                          (('VEC3', 'sky'), ('INT', 'frame'), ('FLOAT', 't_max')),
                          images=("probe_out", "probe_pos_out"), gsdf=True)
         resources.bind(sh)
         self.bind(sh)
         gsdf.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("sc_pages", pages)
+        sh.uniform_sampler("sc_tile_frame", self.tile_frame)
         sh.uniform_float("sky", [float(c) for c in np.asarray(sky, np.float64)[:3]])
         sh.uniform_int("frame", int(frame))
         sh.uniform_float("t_max", float(t_max))
-        sh.image("out_image", rays)
-        sh.image("probe_out", probes)
-        sh.image("probe_pos_out", probe_pos)
-        compute.run(sh, -(-gw * 4 // GROUP), -(-gh * 4 // GROUP), 1)
+        sh.image("out_image", t["rays"])
+        sh.image("probe_out", t["probes"])
+        sh.image("probe_pos_out", t["positions"])
+        compute.run(sh, k * TILE // GROUP, TILE // GROUP, 1)            # one thread per ray
 
-        coeffs = _tex((gw * 2, gh * 2), 'RGBA32F')
-        irradiance = _tex((gw, gh), 'RGBA32F')
-        sh = pass_shader("surface_cache_probe_sh", probe_libs, ("sc_rays", "sc_probes", "sc_probe_pos"),
-                         (('INT', 'frame'),), images=("irradiance_out",))
+        sh = pass_shader("surface_cache_probe_sh", probe_libs,
+                         ("sc_rays", "sc_probes", "sc_probe_pos") + page_samplers,
+                         images=("irradiance_out",))
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("sc_rays", rays)
-        sh.uniform_sampler("sc_probes", probes)
-        sh.uniform_sampler("sc_probe_pos", probe_pos)
-        sh.uniform_int("frame", int(frame))
-        sh.image("out_image", coeffs)
-        sh.image("irradiance_out", irradiance)
-        compute.run(sh, -(-gw // GROUP), -(-gh // GROUP), 1)
+        sh.uniform_sampler("sc_rays", t["rays"])
+        sh.uniform_sampler("sc_probes", t["probes"])
+        sh.uniform_sampler("sc_probe_pos", t["positions"])
+        sh.uniform_sampler("sc_pages", pages)
+        sh.uniform_sampler("sc_tile_frame", self.tile_frame)
+        sh.image("out_image", t["sh"])
+        sh.image("irradiance_out", t["irradiance"])
+        compute.run(sh, k * TILE_PROBES // GROUP, TILE_PROBES // GROUP, 1)   # one per probe
 
         sh = pass_shader("surface_cache_indirect", probe_libs,
-                         ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos",
-                          "sc_indirect_prev"), (('FLOAT', 'blend'),))
+                         ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos")
+                         + page_samplers, images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),),
+                         own_out=False)
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("sc_probes", probes)
-        sh.uniform_sampler("sc_probe_sh", coeffs)
-        sh.uniform_sampler("sc_probe_irradiance", irradiance)
-        sh.uniform_sampler("sc_probe_pos", probe_pos)
-        sh.uniform_sampler("sc_indirect_prev", self.indirect)
-        sh.uniform_float("blend", float(blend))
-        out = _tex(self.packed.lighting_size, 'RGBA32F')
-        sh.image("out_image", out)
-        self._dispatch(sh)
-        self.indirect = out
-        self.probe_textures = {"rays": rays, "probes": probes, "sh": coeffs,
-                               "irradiance": irradiance, "positions": probe_pos}
+        sh.uniform_sampler("sc_probes", t["probes"])
+        sh.uniform_sampler("sc_probe_sh", t["sh"])
+        sh.uniform_sampler("sc_probe_irradiance", t["irradiance"])
+        sh.uniform_sampler("sc_probe_pos", t["positions"])
+        sh.uniform_sampler("sc_pages", pages)
+        sh.uniform_sampler("sc_tile_frame", self.tile_frame)
+        sh.image("out_image", self.indirect)                            # in place: read, blend
+        compute.run(sh, k * TILE // GROUP, TILE // GROUP, 1)            # one per texel
         self.frames += 1
+        return k
 
     def combine(self, resources: SceneResources):
         """surface_cache_combine: final = (direct + indirect) * albedo / pi + emissive."""
@@ -255,12 +287,12 @@ class SurfaceCache:
         return compute.read(getattr(self, name))
 
 
-def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False):
+def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False, own_out=True):
     """compute.shader for a surface-cache pass: the SDF and surface-cache samplers, `texel_card`
-    and the extra 2D `samplers`, an RGBA32F `out_image` and more write-only `images`, `push`
-    constants ((type, name)), with gsdf the global SDF's; surface_cache_texel_lib.glsl and `libs`
-    before glsl/<name>.comp.glsl."""
+    and the extra 2D `samplers`, an RGBA32F write-only `out_image` (unless own_out is False:
+    `images` declares it) and more `images`, `push` constants ((type, name)), with gsdf the global
+    SDF's; surface_cache_texel_lib.glsl and `libs` before glsl/<name>.comp.glsl."""
     return compute.shader(name, samplers=("texel_card",) + tuple(samplers),
-                          images=("out_image",) + tuple(images), push=push,
+                          images=(("out_image",) if own_out else ()) + tuple(images), push=push,
                           libs=("surface_cache_texel_lib.glsl",) + tuple(libs), scene=True,
                           surface_cache=True, global_sdf=gsdf)

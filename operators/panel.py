@@ -72,6 +72,7 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
 def draw_gi_settings(layout, s, render=None):
     col = layout.column()
     col.prop(s, "viewport_gi_quality")
+    col.prop(s, "cache_texels_per_frame")
     if render is not None:      # Blender's own viewport setting, used by Cycles and EEVEE too
         col.prop(render, "preview_pixel_size", text="Viewport Pixel Size")
     col.prop(s, "gi_quality")

@@ -94,6 +94,12 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
     bounces: IntProperty(
         name="Bounces", description="Surface-cache bounces an F12 render converges before it "
         "gathers (the viewport keeps bouncing every frame)", default=3, min=1, max=16)
+    cache_texels_per_frame: IntProperty(
+        name="Cache Texels per Frame", description="Viewport: surface-cache lighting texels "
+        "relit per frame, in tiles of 32x32, the most visible, nearest and oldest first (0: "
+        "the Viewport Quality's 16k / 32k / 64k). Caps the viewport's surface-cache cost however "
+        "many cards the scene has; F12 relights every texel", default=0, min=0, soft_max=1 << 20,
+        step=1024)
     render_frames: IntProperty(
         name="Render Frames", description="F12 temporal accumulation: jittered GI frames averaged",
         default=8, min=1, max=256)

@@ -5,14 +5,19 @@
  * texel (gi_visible) is left out, and with no probe left the texel keeps its last value; then the
  * temporal blend
  * E = mix(E_prev, E_new, blend). Multi-bounce: the probes read last frame's final light.
+ * Runs over this frame's tiles (sc_pages: each with its own blend), in place: out_image holds
+ * the previous E and is read and written by the same thread.
  * Inputs: texel_card, card tables and layers, sc_probes, sc_probe_sh, sc_probe_irradiance,
- * sc_probe_pos, sc_indirect_prev; blend.
- * Output out_image: E.rgb (irradiance, W/m^2), w = 1 on surface texels interpolated from probes,
+ * sc_probe_pos, sc_pages.
+ * Output out_image (read-write): E.rgb (irradiance, W/m^2), w = 1 on surface texels interpolated from probes,
  * 0.5 where no probe could be used (covered texels, e.g. a floor under a wall), 0 elsewhere.
  */
 void main()
 {
-  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 gid = ivec2(gl_GlobalInvocationID.xy);
+  int span = SCP_TILE * SCP_SIZE;
+  int page = gid.x / span;
+  ivec2 px = scp_page_tile(page) * span + ivec2(gid.x % span, gid.y);
   ivec2 size = imageSize(out_image);
   if (px.x >= size.x || px.y >= size.y) {
     return;
@@ -49,7 +54,7 @@ void main()
     E += w * max(e0 + sh4_irradiance(c, n) - sh4_irradiance(c, qi.xyz), vec3(0.0));
     wsum += w;
   }
-  vec3 prev = texelFetch(sc_indirect_prev, px, 0).rgb;
+  vec3 prev = imageLoad(out_image, px).rgb;
   vec3 e = wsum > 0.0 ? E / wsum : prev;
-  imageStore(out_image, px, vec4(mix(prev, e, blend), wsum > 0.0 ? 1.0 : 0.5));
+  imageStore(out_image, px, vec4(mix(prev, e, scp_page_blend(page)), wsum > 0.0 ? 1.0 : 0.5));
 }

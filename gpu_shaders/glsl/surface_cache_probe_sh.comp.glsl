@@ -8,13 +8,16 @@
  * (2 pi / 16) / (probes used): exact where two-band SH is not (a small bright source near the
  * normal reads 25% low through SH4's clamped-cosine convolution); the texels use E0 and take from
  * the SH only how their normal differs from the probe's.
- * Inputs: sc_rays, sc_probes, sc_probe_pos (trace outputs); frame.
+ * Runs over this frame's tiles (sc_pages); a neighbour in another tile keeps the rays of that
+ * tile's last update, traced with that frame's jitter (sc_tile_frame).
+ * Inputs: sc_rays, sc_probes, sc_probe_pos (trace outputs), sc_pages, sc_tile_frame.
  * Output out_image: SH coefficient k of probe (i, j) at texel (2 i + k % 2, 2 j + k / 2), rgb;
  * irradiance_out: E0 of probe (i, j).
  */
 void main()
 {
-  ivec2 probe = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 gid = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 probe = scp_page_tile(gid.x / SCP_TILE) * SCP_TILE + ivec2(gid.x % SCP_TILE, gid.y);
   ivec2 grid = textureSize(sc_probes, 0);
   if (probe.x >= grid.x || probe.y >= grid.y) {
     return;
@@ -41,10 +44,11 @@ void main()
             continue;
           }
         }
+        int q_frame = scp_probe_frame(q);
         for (int k = 0; k < SCP_RAYS; k++) {
           vec3 L = texelFetch(sc_rays, q * SCP_SIZE + ivec2(k & 3, k >> 2), 0).rgb;
           float b[4];
-          vec3 dir = scp_dir(q, frame, k, qi.xyz);
+          vec3 dir = scp_dir(q, q_frame, k, qi.xyz);
           sh4_basis(dir, b);
           e0 += L * max(dot(dir, own.xyz), 0.0);
           for (int i = 0; i < 4; i++) {

@@ -2,14 +2,17 @@
  * ray atlas is ray (x % 4) + 4 (y % 4) of probe (x / 4, y / 4) (surface_cache_probe_lib.glsl).
  * Each ray goes through gi_trace_lib.glsl from one voxel off the probe's surface and returns the
  * surface cache's final light at its hit (last frame's: one more bounce) or the sky.
- * Inputs: texel_card, card tables and layers, sc_final; sky, frame, t_max.
+ * Runs over this frame's tiles (sc_pages): thread (x, y) is ray texel (x % 32, y) of tile x / 32.
+ * Inputs: texel_card, card tables and layers, sc_final, sc_pages; sky, frame, t_max.
  * Outputs: out_image (rays): radiance rgb, a = 1 (0: no probe); probe_out (one texel per probe,
  * written by ray 0): world normal xyz, w = card row + 1 (0: no probe); probe_pos_out: world position
  * xyz, w = the object's voxel.
  */
 void main()
 {
-  ivec2 tx = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 gid = ivec2(gl_GlobalInvocationID.xy);
+  int span = SCP_TILE * SCP_SIZE;
+  ivec2 tx = scp_page_tile(gid.x / span) * span + ivec2(gid.x % span, gid.y);
   ivec2 size = imageSize(out_image);
   if (tx.x >= size.x || tx.y >= size.y) {
     return;

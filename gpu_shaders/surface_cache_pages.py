@@ -1,0 +1,113 @@
+"""Which tiles of the surface cache's lighting atlas are relit this frame (numpy only, no gpu).
+
+The lecture's surface-cache update budget (UE: a fixed number of card captures and a fraction of
+the lighting updated per frame): a viewport frame relights only `budget` tiles of 8x8 radiosity
+probes (32x32 lighting texels), so its cost no longer grows with the scene's total card area. A
+tile is chosen by priority:
+  1. never lit since the lighting was reset (the scene changed): these come first;
+  2. then by age (frames since the tile's last update) times 2 when a card of the tile belongs to
+     an instance inside the view frustum, divided by 1 + distance / 10 m: visible and near tiles
+     refresh more often, every tile is refreshed eventually (its age grows without bound).
+Each tile keeps its own update count, so its temporal blend (1 / (n + 1), at least 1 / history)
+converges as if every tile were updated every frame. F12 relights every tile every iteration.
+
+The tile -> card rows table is built once per lighting atlas (a CSR of unique rows per tile);
+per frame the work is O(card rows + tiles) in numpy.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .card_packing import PROBE_BLOCK
+
+TILE_PROBES = 8                          # probes per tile side (surface_cache_probe_lib.glsl)
+TILE = TILE_PROBES * PROBE_BLOCK         # lighting texels per tile side
+NEAR_METRES = 10.0                       # distance at which a tile's priority halves
+VISIBLE_WEIGHT = 2.0
+
+
+class PageSchedule:
+    """Per-tile update counts and ages of one lighting atlas, and the choice of each frame's tiles."""
+
+    def __init__(self, texel_card: np.ndarray, card_instance: np.ndarray):
+        """texel_card: float [H, W] card row per lighting texel (-1: none); card_instance: the
+        object-table row of each card row."""
+        h, w = texel_card.shape
+        self.grid = (-(-w // TILE), -(-h // TILE))                     # tiles (x, y)
+        tw, th = self.grid
+        padded = np.full((th * TILE, tw * TILE), -1, np.int64)
+        padded[:h, :w] = np.rint(texel_card).astype(np.int64)
+        per_tile = padded.reshape(th, TILE, tw, TILE).transpose(0, 2, 1, 3).reshape(th * tw, -1)
+        tile_id, rows = np.nonzero(per_tile >= 0)
+        pairs = np.unique(tile_id * (int(padded.max()) + 2) + per_tile[tile_id, rows])
+        pair_tile = pairs // (int(padded.max()) + 2)
+        pair_row = pairs % (int(padded.max()) + 2)
+        used, first = np.unique(pair_tile, return_index=True)           # tiles holding a card
+        self.tiles = np.stack([used % tw, used // tw], axis=1).astype(np.int32)
+        self.row_start = first                                           # CSR into pair_row
+        self.row_instance = np.asarray(card_instance, np.int64)[pair_row]
+        self.count = np.zeros(len(self.tiles), np.int64)
+        self.last = np.full(len(self.tiles), -1, np.int64)
+        self.tile_frame = np.zeros((th, tw), np.float32)                # frame of each tile's rays
+
+    def __len__(self) -> int:
+        return len(self.tiles)
+
+    def reset(self):
+        self.count[:] = 0
+        self.last[:] = -1
+
+    def priority(self, frame: int, instance_spheres=None, view_proj=None, cam_pos=None) -> np.ndarray:
+        """Score per tile (higher first); never-lit tiles score above every lit one."""
+        age = (frame - self.last).astype(np.float64)
+        weight = np.ones(len(self.tiles))
+        if instance_spheres is not None and len(self.row_instance):
+            spheres = np.asarray(instance_spheres, np.float64)[self.row_instance]
+            if view_proj is not None:
+                vis = _in_frustum(spheres, np.asarray(view_proj, np.float64)).astype(np.float64)
+                weight *= np.where(np.maximum.reduceat(vis, self.row_start) > 0, VISIBLE_WEIGHT, 1.0)
+            if cam_pos is not None:
+                d = np.linalg.norm(spheres[:, :3] - np.asarray(cam_pos, np.float64)[:3], axis=1)
+                d = np.maximum(d - spheres[:, 3], 0.0)
+                weight /= 1.0 + np.minimum.reduceat(d, self.row_start) / NEAR_METRES
+        score = age * weight
+        never = self.count == 0
+        score[never] = score.max(initial=0.0) + 1.0 + age[never]
+        return score
+
+    def choose(self, budget: int, frame: int, history: int, **where) -> tuple:
+        """(tile indices, blend per tile) for this frame: at most `budget` tiles by priority
+        (all when budget <= 0 or >= the tile count). Call commit() once they were relit."""
+        n = len(self.tiles)
+        if budget <= 0 or budget >= n:
+            idx = np.arange(n)
+        else:
+            idx = np.argsort(-self.priority(frame, **where), kind="stable")[:budget]
+            idx.sort()
+        blend = np.maximum(1.0 / (self.count[idx] + 1.0), 1.0 / max(int(history), 1))
+        return idx, blend
+
+    def commit(self, idx, frame: int):
+        self.count[idx] += 1
+        self.last[idx] = frame
+        tx, ty = self.tiles[idx, 0], self.tiles[idx, 1]
+        self.tile_frame[ty, tx] = frame
+
+    def converged(self, history: int) -> bool:
+        return bool((self.count >= max(int(history), 1)).all())
+
+    def page_table(self, idx, blend) -> np.ndarray:
+        """float32 [1, K, 4] texels (tile x, tile y, blend, 0) for the GPU (sc_pages)."""
+        out = np.zeros((1, max(len(idx), 1), 4), np.float32)
+        out[0, :len(idx), :2] = self.tiles[idx]
+        out[0, :len(idx), 2] = blend
+        return out
+
+
+def _in_frustum(spheres: np.ndarray, view_proj: np.ndarray) -> np.ndarray:
+    """bool per sphere (centre xyz, radius): not entirely outside one of the six clip planes."""
+    m = view_proj
+    planes = np.array([m[3] + m[0], m[3] - m[0], m[3] + m[1], m[3] - m[1], m[3] + m[2], m[3] - m[2]])
+    planes /= np.linalg.norm(planes[:, :3], axis=1, keepdims=True)
+    dist = spheres[:, :3] @ planes[:, :3].T + planes[:, 3]
+    return (dist >= -spheres[:, 3:4]).all(axis=1)

@@ -1,0 +1,62 @@
+"""The surface-cache update budget (gpu_shaders/surface_cache_pages.py), exactly, no bpy: tiles
+and their card rows, the budget, the priority order (never lit, visible, near, old) and that every
+tile is refreshed within the frames the budget implies."""
+import numpy as np
+
+from gpu_shaders.surface_cache_pages import TILE, PageSchedule
+
+
+def atlas():
+    """A 100 x 70 lighting atlas (4 x 3 tiles): card row r fills tile column r (rows 0-3), each
+    row on its own instance; tile (3, 2) holds no card."""
+    tc = np.full((70, 100), -1.0)
+    for r in range(4):
+        tc[:, r * TILE:min((r + 1) * TILE, 100)] = r
+    tc[64:, 96:] = -1                                # tile (3, 2) is empty
+    return tc, np.arange(4)
+
+
+def test_tiles_and_rows():
+    s = PageSchedule(*atlas())
+    assert s.grid == (4, 3)
+    assert len(s) == 11                              # 12 tiles, one without a card
+    assert [tuple(t) for t in s.tiles[:4]] == [(0, 0), (1, 0), (2, 0), (3, 0)]
+    assert list(s.row_instance[s.row_start[:4]]) == [0, 1, 2, 3]
+
+
+def test_budget_priority_and_round_robin():
+    s = PageSchedule(*atlas())
+    idx, blend = s.choose(0, frame=0, history=8)     # no budget: everything
+    assert len(idx) == 11 and np.allclose(blend, 1.0)
+    s.commit(idx, 0)
+    idx, blend = s.choose(4, frame=1, history=8)
+    assert len(idx) == 4 and np.allclose(blend, 0.5)  # second update of each: 1 / 2
+    # an instance in view and near the camera wins over equally old tiles
+    spheres = np.array([[0, 0, 0, 1], [0, 0, 0, 1], [100, 0, 0, 1], [0, 0, 50, 1]], float)
+    view_proj = np.diag([0.1, 0.1, -0.1, 1.0])       # the box |x|, |y|, |z| <= 10 is in view
+    score = s.priority(1, instance_spheres=spheres, view_proj=view_proj, cam_pos=(0, 0, 0))
+    cols = s.tiles[:, 0]
+    assert score[cols == 0].min() > score[cols == 2].max()     # visible beats outside the view
+    assert score[cols == 1].min() > score[cols == 3].max()     # near beats far (both unseen)
+    # with a budget of 4 of 11 tiles, every tile is refreshed within ceil(11 / 4) = 3 frames
+    s.reset()
+    seen = np.zeros(len(s), int)
+    for frame in range(3):
+        idx, _ = s.choose(4, frame, history=8, instance_spheres=spheres, view_proj=view_proj,
+                          cam_pos=(0, 0, 0))
+        assert len(idx) == 4 or frame == 2
+        s.commit(idx, frame)
+        seen[idx] += 1
+    assert (seen >= 1).all(), seen
+    assert not s.converged(8)
+
+
+def test_never_lit_tiles_come_first_after_a_reset():
+    s = PageSchedule(*atlas())
+    s.commit(np.arange(6), 0)
+    idx, blend = s.choose(5, frame=1, history=8)
+    assert set(idx) == set(range(6, 11)) and np.allclose(blend, 1.0)
+    table = s.page_table(idx, blend)
+    assert table.shape == (1, 5, 4) and np.array_equal(table[0, :, :2], s.tiles[idx])
+    s.commit(idx, 1)
+    assert s.tile_frame[s.tiles[idx[0], 1], s.tiles[idx[0], 0]] == 1
