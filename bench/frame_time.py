@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import argparse
 import statistics
+
+import numpy as np
 import sys
 import time
 from pathlib import Path
@@ -28,7 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 
 
-def build_scene(tmp: Path, size: int):
+def build_scene(tmp: Path, size: int, extra: int = 0):
     import bpy
     import mathutils
 
@@ -50,6 +52,13 @@ def build_scene(tmp: Path, size: int):
     colours = ((0.8, 0.8, 0.8), (0.8, 0.2, 0.2), (0.2, 0.7, 0.3), (0.2, 0.3, 0.8), (0.8, 0.7, 0.2))
     for obj, c in zip(list(scene.objects), colours):
         obj.data.materials.append(material(obj.name + "Mat", c))
+    side = max(int(np.ceil(np.sqrt(extra))), 1)
+    for i in range(extra):      # unique meshes (own cards) on a grid around the floor, to 20 m
+        x, y = (i % side) / max(side - 1, 1) * 40.0 - 20.0, (i // side) / max(side - 1, 1) * 40.0 - 20.0
+        if abs(x) < 4.0 and abs(y) < 4.0:
+            x += 8.0
+        ops.primitive_cube_add(size=0.8, location=(x, y, 0.4))
+        bpy.context.object.data.materials.append(material(f"Extra{i}", colours[i % 5]))
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     sun.data.energy = 3.0
     sun.rotation_euler = (0.6, 0.2, 0.8)
@@ -86,6 +95,8 @@ def main():
     ap.add_argument("--size", type=int, default=256)
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--quality", default="MEDIUM", choices=("OFF", "LOW", "MEDIUM", "HIGH"))
+    ap.add_argument("--extra-objects", type=int, default=0,
+                    help="unique cubes added on a 40 m grid (more cards: the surface-cache budget)")
     ap.add_argument("--viewport", type=int, nargs=2, metavar=("W", "H"),
                     help="also time view_draw at W x H (Pixel Size 1 and 2) against EEVEE at W x H")
     args = ap.parse_args()
@@ -97,7 +108,7 @@ def main():
 
     with tempfile.TemporaryDirectory() as tmp:
         demo.load_addon()
-        scene = build_scene(Path(tmp), args.size)
+        scene = build_scene(Path(tmp), args.size, args.extra_objects)
         scene.lumen.cache_dir = str(Path(tmp) / "cache")
         scene.lumen.voxel_density = 16.0
         t = time.perf_counter()
@@ -123,11 +134,18 @@ def main():
             import viewport_harness
             vw, vh = args.viewport
             scene.lumen.viewport_gi_quality = args.quality
-            for ps in ("1", "2"):
+            def gi_state(i):
+                R = engine.LAST_RENDER
+                t = R.get("gi_timings", {})
+                return (t.get("sc_indirect", 0.0), R.get("gi_sc_tiles", (0, 0)))
+            for label, ps, texels in (("Pixel Size 1", "1", 0), ("Pixel Size 2", "2", 0),
+                                      ("Pixel Size 2, no cache budget", "2", 1 << 30)):
                 scene.render.preview_pixel_size = ps
+                scene.lumen.cache_texels_per_frame = texels
                 out = viewport_harness.run(scene, engine.LumenGIRenderEngine, vw, vh,
-                                           redraws=args.repeat + 1)
-                viewport[ps] = out["seconds"]
+                                           redraws=args.repeat + 1, on_redraw=gi_state)
+                viewport[label] = (out["seconds"], out["after"])
+            scene.lumen.cache_texels_per_frame = 0
         eevee_id = [i.identifier for i in
                     bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
                     if i.identifier.startswith("BLENDER_EEVEE")][0]
@@ -150,10 +168,13 @@ def main():
         m_ev = statistics.median(eevee_view[1:])
         vw, vh = args.viewport
         print(f"viewport {vw}x{vh}: {eevee_id} 1 sample median {m_ev * 1000:.1f} ms")
-        for ps, times in viewport.items():
+        for label, (times, gi) in viewport.items():
             m = statistics.median(times[1:])
-            print(f"  LUMEN_GI view_draw, Pixel Size {ps}: first {times[0] * 1000:.1f} ms, "
-                  f"median {m * 1000:.1f} ms, ratio to EEVEE {m / m_ev:.3f}")
+            sc = statistics.median(g[0] for g in gi[1:]) * 1000
+            tiles = gi[-1][1]
+            print(f"  LUMEN_GI view_draw, {label}: first {times[0] * 1000:.1f} ms, median "
+                  f"{m * 1000:.1f} ms (surface-cache radiosity {sc:.1f} ms, {tiles[0]} of "
+                  f"{tiles[1]} tiles), ratio to EEVEE {m / m_ev:.3f}")
 
 
 if __name__ == "__main__":

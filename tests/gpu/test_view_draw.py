@@ -61,9 +61,18 @@ for label, ps, redraws in (("full", "1", 24), ("half", "2", 2)):
     out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, redraws, state)
     results[label] = out["after"]
     np.save(label + "_frame.npy", engine.LAST_RENDER["combined"])
+    np.save(label + "_albedo.npy", engine.LAST_RENDER["albedo"])
     np.save(label + "_drawn.npy", out["drawn"])
 np.save("f12.npy", f12)
-emit(results=results)
+# a moved object and a moved light reach the next redraw
+scene.render.preview_pixel_size = "1"
+box.location.x += 1.2
+viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 1)
+moved = dict(changes=engine.LAST_RENDER["changes"], albedo=engine.LAST_RENDER["albedo"].copy())
+sun.rotation_euler = (1.0, -0.4, 0.0)
+viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 1)
+np.save("moved_albedo.npy", moved["albedo"])
+emit(results=results, moved_changes=moved["changes"], light_changes=engine.LAST_RENDER["changes"])
 """
 
 
@@ -85,6 +94,16 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
     assert err < 0.01, f"converged viewport against F12: relMSE {err:.4f}"
     drawn = np.load(tmp_path / "full_drawn.npy")
     assert drawn.shape[:2] == (64, 64) and (drawn[..., 3] > 0.5).mean() > 0.99
+
+    # moving the box re-uploads the object table and moves its red pixels to the right;
+    # turning the sun re-uploads the lights
+    assert "objects" in res.result["moved_changes"], res.result["moved_changes"]
+    assert "lights" in res.result["light_changes"], res.result["light_changes"]
+
+    def red_x(albedo):
+        red = (albedo[..., 0] > 0.5) & (albedo[..., 1] < 0.2)
+        return np.argwhere(red)[:, 1].mean()
+    assert red_x(np.load(tmp_path / "moved_albedo.npy")) > red_x(np.load(tmp_path / "full_albedo.npy")) + 3
 
     # Pixel Size 2: the frame runs at 32x32 and is drawn over the whole 64x64 region
     assert all(d["width"] == 32 and d["height"] == 32 and d["pixel_size"] == 2 for d in half), half
