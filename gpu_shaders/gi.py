@@ -62,7 +62,14 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     state.gi_view_key, state.gi_sky = view_key, np.asarray(sky, np.float64).copy()
     objects_changed = bool(changes & {"atlas", "objects"})
     t1 = time.perf_counter()
-    cache.light_direct(res, state.light_texture, len(state.lights))
+    if final:      # F12: every tile, every iteration (deterministic)
+        tiles = None
+    else:          # viewport: a budget of tiles by priority, the same for direct and radiosity
+        frame0 = state.gi_frame
+        where = dict(instance_spheres=res.packed.objects[:, 8], view_proj=view_proj,
+                     cam_pos=cam_pos)
+        tiles = cache.plan(frame0, budget=gi.sc_tiles, history=gi.history, where=where)
+    cache.light_direct(res, state.light_texture, len(state.lights), tiles=tiles)
     t2 = time.perf_counter()
     timings = {"gsdf": 0.0, "sc_indirect": 0.0, "probes": 0.0}
     if final:
@@ -81,14 +88,11 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         objects_changed = False
         b = time.perf_counter()
         if sc_blend is not None:
-            if final:      # F12: every tile, every iteration (deterministic)
-                tiles = cache.light_indirect(res, gsdf, sky, frame, sc_blend, t_max)
-            else:          # viewport: the budget's tiles by priority
-                where = dict(instance_spheres=res.packed.objects[:, 8], view_proj=view_proj,
-                             cam_pos=cam_pos)
-                tiles = cache.light_indirect(res, gsdf, sky, frame, sc_blend, t_max,
-                                             budget=gi.sc_tiles, history=gi.history, where=where)
-            relit += tiles
+            if final:
+                frame_tiles = cache.plan(frame, blend=sc_blend)
+            else:
+                frame_tiles = tiles                  # one iteration per viewport frame
+            relit += cache.light_indirect(res, gsdf, sky, frame, t_max, frame_tiles)
             cache.combine(res)
         c = time.perf_counter()
         if px_blend is not None:

@@ -132,45 +132,61 @@ class SurfaceCache:
         return {"cards_" + k: n * self.BYTES[fmt] for k, (n, fmt) in self._alloc.items()}
 
     # --- passes --------------------------------------------------------------------------------
-    def light_direct(self, resources: SceneResources, light_tex, light_count: int,
-                     light_samples: int = 8):
-        """surface_cache_direct: E_direct of every lighting texel."""
-        sh = pass_shader("surface_cache_direct", ("light_lib.glsl",), ("lights",),
-                         (('INT', 'light_count'), ('INT', 'light_samples')))
-        resources.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("lights", light_tex)
-        sh.uniform_int("light_count", int(light_count))
-        sh.uniform_int("light_samples", int(light_samples))
-        sh.image("out_image", self.direct)
-        self._dispatch(sh)
-
-    def light_indirect(self, resources: SceneResources, gsdf, sky, frame: int, blend: float,
-                       t_max: float, budget: int = 0, history: int = 1, where=None) -> int:
-        """E_indirect = mix(last E_indirect, this frame's probes, blend) on the tiles relit this
-        frame, in three passes over those tiles only: surface_cache_probe_trace (16 rays per
-        probe of 4x4 texels, surface cache at hits), surface_cache_probe_sh (3x3 probe filter,
-        two-band SH), surface_cache_indirect (per texel: 2x2 probes' SH irradiance at the
-        texel's normal, temporal blend, in place).
+    def plan(self, frame: int, blend: float = 1.0, budget: int = 0, history: int = 1,
+             where=None) -> tuple:
+        """This frame's tiles and their blends, committed as relit at `frame`.
         budget <= 0 (F12): every tile, all with `blend`. budget > 0 (viewport): at most `budget`
         tiles by priority (surface_cache_pages.py; `where`: instance_spheres, view_proj,
-        cam_pos), each with its own blend from its update count and `history`.
-        Returns the number of tiles relit."""
+        cam_pos), each with its own blend from its update count and `history`."""
         if budget > 0:
             idx, blends = self.pages.choose(budget, frame, history, **(where or {}))
         else:
             idx = np.arange(len(self.pages))
             blends = np.full(len(idx), float(blend))
-        if not len(idx):
-            return 0
         self.pages.commit(idx, frame)
-        pages = _tex((len(idx), 1), 'RGBA32F', self.pages.page_table(idx, blends))
         tw, th = self.pages.grid
         self.tile_frame = _tex((tw, th), 'R32F', self.pages.tile_frame)
+        return idx, blends
+
+    def _page_table(self, tiles):
+        idx, blends = tiles
+        return _tex((max(len(idx), 1), 1), 'RGBA32F', self.pages.page_table(idx, blends))
+
+    def light_direct(self, resources: SceneResources, light_tex, light_count: int,
+                     light_samples: int = 8, tiles=None):
+        """surface_cache_direct: E_direct of the lighting texels of `tiles` (plan(); None: all)."""
+        tiles = tiles if tiles is not None else (np.arange(len(self.pages)), np.ones(len(self.pages)))
+        if not len(tiles[0]):
+            return
+        sh = pass_shader("surface_cache_direct", ("surface_cache_pages_lib.glsl", "light_lib.glsl"),
+                         ("lights", "sc_pages"), (('INT', 'light_count'), ('INT', 'light_samples')))
+        resources.bind(sh)
+        self.bind(sh)
+        sh.uniform_sampler("texel_card", self.texel_card)
+        sh.uniform_sampler("lights", light_tex)
+        pages = self._page_table(tiles)       # held until the dispatch: a freed texture reads 0
+        sh.uniform_sampler("sc_pages", pages)
+        sh.uniform_int("light_count", int(light_count))
+        sh.uniform_int("light_samples", int(light_samples))
+        sh.image("out_image", self.direct)
+        compute.run(sh, len(tiles[0]) * TILE // GROUP, TILE // GROUP, 1)
+
+    def light_indirect(self, resources: SceneResources, gsdf, sky, frame: int, t_max: float,
+                       tiles) -> int:
+        """E_indirect = mix(last E_indirect, this frame's probes, blend) on `tiles` (plan(): the
+        tile indices and a blend each), in three passes over those tiles only:
+        surface_cache_probe_trace (16 rays per probe of 4x4 texels, surface cache at hits),
+        surface_cache_probe_sh (3x3 probe filter, two-band SH), surface_cache_indirect (per
+        texel: 2x2 probes' SH irradiance at the texel's normal, temporal blend, in place).
+        Returns the number of tiles relit."""
+        idx = tiles[0]
+        if not len(idx):
+            return 0
+        pages = self._page_table(tiles)
         t = self.probe_textures
         k = len(idx)
-        probe_libs = ("sampling_lib.glsl", "sh_lib.glsl", "surface_cache_probe_lib.glsl")
+        probe_libs = ("sampling_lib.glsl", "sh_lib.glsl", "surface_cache_pages_lib.glsl",
+                      "surface_cache_probe_lib.glsl")
         page_samplers = ("sc_pages", "sc_tile_frame")
         sh = pass_shader("surface_cache_probe_trace",
                          probe_libs + ("gi_trace_lib.glsl",), page_samplers,

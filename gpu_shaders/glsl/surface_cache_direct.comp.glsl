@@ -3,10 +3,11 @@
  * Inputs: texel_card (card row per texel, -1 none), the card tables and layers, lights,
  * light_count. Output out_image (RGBA32F): E.rgb, w = 1 where the texel holds a surface, else 0.
  * The sky is not added here: the indirect pass gets it from the rays that miss.
+ * Runs over this frame's tiles (sc_pages, surface_cache_pages_lib.glsl); the others keep theirs.
  */
 void main()
 {
-  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 px = scp_page_texel(ivec2(gl_GlobalInvocationID.xy));
   ivec2 size = imageSize(out_image);
   if (px.x >= size.x || px.y >= size.y) {
     return;

@@ -15,9 +15,8 @@
 void main()
 {
   ivec2 gid = ivec2(gl_GlobalInvocationID.xy);
-  int span = SCP_TILE * SCP_SIZE;
-  int page = gid.x / span;
-  ivec2 px = scp_page_tile(page) * span + ivec2(gid.x % span, gid.y);
+  int page = gid.x / SCP_PAGE_TEXELS;
+  ivec2 px = scp_page_texel(gid);
   ivec2 size = imageSize(out_image);
   if (px.x >= size.x || px.y >= size.y) {
     return;

@@ -9,20 +9,6 @@
  */
 #define SCP_SIZE 4
 #define SCP_RAYS 16
-#define SCP_TILE 8   /* probes per tile side: a frame relights whole tiles (surface_cache_pages.py) */
-
-/* The passes run over this frame's tiles only: sc_pages holds one texel per tile (tile x, tile y,
- * temporal blend), and thread x / (tile width) picks the tile. */
-ivec2 scp_page_tile(int page)
-{
-  return ivec2(texelFetch(sc_pages, ivec2(page, 0), 0).xy + 0.5);
-}
-
-float scp_page_blend(int page)
-{
-  return texelFetch(sc_pages, ivec2(page, 0), 0).z;
-}
-
 /* The frame whose jitter a probe's rays were traced with (its tile's last update). */
 int scp_probe_frame(ivec2 probe)
 {

@@ -11,8 +11,7 @@
 void main()
 {
   ivec2 gid = ivec2(gl_GlobalInvocationID.xy);
-  int span = SCP_TILE * SCP_SIZE;
-  ivec2 tx = scp_page_tile(gid.x / span) * span + ivec2(gid.x % span, gid.y);
+  ivec2 tx = scp_page_texel(gid);
   ivec2 size = imageSize(out_image);
   if (tx.x >= size.x || tx.y >= size.y) {
     return;
