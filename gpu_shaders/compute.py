@@ -75,7 +75,10 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
         info.sampler(slot, 'FLOAT_2D', s)
         slot += 1
     for k, im in enumerate(images):
-        im_name, fmt, access = (im, 'RGBA32F', {'WRITE'}) if isinstance(im, str) else (*im, {'WRITE'})[:3]
+        im = (im,) if isinstance(im, str) else tuple(im)
+        im_name = im[0]
+        fmt = im[1] if len(im) > 1 else 'RGBA32F'
+        access = im[2] if len(im) > 2 else {'WRITE'}
         info.image(k, fmt, 'FLOAT_2D', im_name, qualifiers=set(access))
     for kind, pname in push:
         info.push_constant(kind, pname)
@@ -85,9 +88,9 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
 
 
 def texture(size, fmt='RGBA32F'):
-    """A new 2D texture cleared to zero. A new GPUTexture's contents are undefined (Blender 5.3's
-    OpenGL backend hands back memory of freed textures), so a pass that leaves texels unwritten
-    would let the next pass read garbage."""
+    """A new 2D texture cleared to zero. A new GPUTexture's contents are undefined (OpenGL and
+    Vulkan leave them so), and the surface cache's passes keep textures whose texels are written
+    a tile at a time: what no pass wrote yet must read as 'nothing', not as garbage."""
     tex = gpu.types.GPUTexture((int(size[0]), int(size[1])), format=fmt)
     channels = next(n for prefix, n in (("RGBA", 4), ("RGB", 3), ("RG", 2), ("R", 1))
                     if fmt.startswith(prefix))

@@ -75,10 +75,9 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     if final:
         schedule = gi.render_schedule()
     else:
-        n = cache.frames
-        sc_blend = max(1.0 / (n + 1), 1.0 / gi.history)
+        # one iteration; the surface cache's tiles blend by their own counts (plan() above)
         m = probes.history is not None and probes.frames or 0
-        schedule = [(sc_blend, max(1.0 / (m + 1), 1.0 / gi.history))]
+        schedule = [(1.0, max(1.0 / (m + 1), 1.0 / gi.history))]
     result, relit = None, 0
     for sc_blend, px_blend in schedule:
         frame = state.gi_frame
