@@ -20,7 +20,8 @@ Debug views (`scene.lumen.debug_view`, N-panel and Render Properties) replace wh
 shows: COMBINED, NORMAL, ALBEDO, DIRECT, INDIRECT; the SDF trace alone: DEPTH (hit distance),
 STEPS (heat map), HYBRID (green: mesh-SDF hit, blue: global-SDF hit); the surface cache seen
 through the cards: SC_FINAL, SC_ALBEDO, SC_NORMAL, SC_DIRECT, SC_INDIRECT, CARDS (a colour per
-card; magenta where no card sees the point); PROBES (the probe radiance atlas) and
+card; magenta where no card sees the point), SC_UPDATES (update heat of the budget: green relit
+this frame to red 8+ frames ago, magenta not yet); PROBES (the probe radiance atlas) and
 PROBE_FALLBACK (green: interpolated from probes, red: traced per pixel).
 
 GPU inputs live in a per-scene scene_state.SceneState shared by render() and the viewport: a
@@ -53,11 +54,13 @@ PASSES = (("Diffuse Direct", 3, "RGB", 'COLOR'), ("Diffuse Indirect", 3, "RGB", 
           ("Diffuse Color", 3, "RGB", 'COLOR'), ("Normal", 3, "XYZ", 'VECTOR'))
 VIEW_PROPERTY = "lumen_preview_view"       # legacy: "DEPTH" selects the DEPTH debug view
 DEBUG_VIEWS = ("COMBINED", "DEPTH", "STEPS", "NORMAL", "ALBEDO", "DIRECT", "INDIRECT", "HYBRID",
-               "SC_FINAL", "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS", "PROBES",
+               "SC_FINAL", "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS",
+               "SC_UPDATES", "PROBES",
                "PROBE_FALLBACK")
 TRACE_VIEWS = ("DEPTH", "STEPS", "HYBRID")
 CARD_VIEWS = {"SC_FINAL": "final", "SC_ALBEDO": "albedo", "SC_NORMAL": "normal",
-              "SC_DIRECT": "direct", "SC_INDIRECT": "indirect", "CARDS": "cards"}
+              "SC_DIRECT": "direct", "SC_INDIRECT": "indirect", "CARDS": "cards",
+              "SC_UPDATES": "updates"}
 STEPS_FULL_SCALE = 128.0                    # STEPS heat map: red at this many steps
 
 # GPU bytes per resource of the last frame, by scene name (the N-panel reads it).
@@ -163,6 +166,20 @@ def pixel_size(scene, context=None) -> int:
     return max(1, int(value))
 
 
+def screen_bytes(width: int, height: int, gi: bool) -> dict:
+    """GPU bytes of a frame's screen-size targets (RGBA32F unless said): the G-buffer's
+    attachments and depth (32-bit), the direct light pass's two images and, with GI, the
+    composite's two (the screen probes count their own)."""
+    from .gbuffer import ATTACHMENTS
+
+    px = int(width) * int(height)
+    out = {"screen_gbuffer": px * 16 * len(ATTACHMENTS), "screen_depth": px * 4,
+           "screen_direct": px * 16 * 2}
+    if gi:
+        out["screen_composite"] = px * 16 * 2
+    return out
+
+
 def gpu_backend() -> str:
     """'OPENGL', 'VULKAN', 'METAL' (...) of the running Blender, 'unknown' where it cannot say."""
     import gpu
@@ -244,7 +261,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
             LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])
     t5 = time.perf_counter()
-    MEMORY[scene.name] = state.stats()
+    MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled))
     LAST_RENDER.update(
         view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
         sky=sky, notes=list(warnings) + sky_notes, triangles=gbuf["triangles"],

@@ -253,17 +253,22 @@ class SurfaceCache:
         self.final = out
 
     LAYERS = {"albedo": 0, "normal": 1, "direct": 2, "indirect": 3, "position": 4, "cards": 5,
+              "updates": 7,
               "final": 6}
 
     def layer(self, resources: SceneResources, name: str):
         """surface_cache_layer: an RGBA32F lighting-atlas texture of one LAYERS view."""
-        sh = pass_shader("surface_cache_layer", (), ("sc_direct", "sc_indirect"),
+        sh = pass_shader("surface_cache_layer", (), ("sc_direct", "sc_indirect", "sc_tile_age"),
                          (('INT', 'layer_mode'),))
+        tw, th = self.pages.grid
+        age = self.pages.ages()            # held until the dispatch
+        ages = _tex((tw, th), 'R32F', age)
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
         sh.uniform_sampler("sc_direct", self.direct)
         sh.uniform_sampler("sc_indirect", self.indirect)
+        sh.uniform_sampler("sc_tile_age", ages)
         sh.uniform_int("layer_mode", self.LAYERS[name])
         out = _tex(self.packed.lighting_size, 'RGBA32F')
         sh.image("out_image", out)

@@ -93,6 +93,17 @@ class PageSchedule:
         tx, ty = self.tiles[idx, 0], self.tiles[idx, 1]
         self.tile_frame[ty, tx] = frame
 
+    def ages(self) -> np.ndarray:
+        """float32 [tiles y, tiles x]: frames since each tile's last update, counted from the most
+        recent update (0: relit in the last frame); -1 never since the reset or no card. For the
+        update-heat debug view."""
+        out = np.full((self.grid[1], self.grid[0]), -1.0, np.float32)
+        if len(self.tiles):
+            now = self.last.max()
+            age = np.where(self.last >= 0, now - self.last, -1).astype(np.float32)
+            out[self.tiles[:, 1], self.tiles[:, 0]] = age
+        return out
+
     def converged(self, history: int) -> bool:
         return bool((self.count >= max(int(history), 1)).all())
 

@@ -95,6 +95,7 @@ def draw_memory(layout, scene):
     stages = {}
     for name, value in memory.items():
         stage = ("Cards" if name.startswith("cards_") else "Global SDF" if name.startswith("global_sdf")
+                 else "Screen targets" if name.startswith("screen_")
                  else "Screen probes" if name.startswith("probes_") else "Lights" if name == "lights"
                  else "Mesh SDFs")
         stages[stage] = stages.get(stage, 0) + value

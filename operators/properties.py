@@ -74,6 +74,8 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                ('SC_DIRECT', "Surface Cache Direct", "The cards' direct light (E / pi)"),
                ('SC_INDIRECT', "Surface Cache Indirect", "The cards' indirect light (E / pi)"),
                ('CARDS', "Cards", "Each card in its own colour over the geometry"),
+               ('SC_UPDATES', "Surface Cache Updates", "Update heat of the surface-cache budget: "
+                "green relit this frame, to red 8 or more frames ago; magenta not yet relit"),
                ('PROBES', "Probe Atlas", "The screen probes' octahedral radiance, one tile each"),
                ('PROBE_FALLBACK', "Probe Interpolation", "Green: interpolated from probes on the "
                 "pixel's plane, red: fallback (no probe on that plane)")),

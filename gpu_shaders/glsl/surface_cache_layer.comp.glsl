@@ -1,7 +1,10 @@
 /* Surface cache layer view: one value per lighting-atlas texel, for the debug views and tests.
  * layer_mode: 0 albedo, 1 world normal * 0.5 + 0.5, 2 direct E / pi, 3 indirect E / pi,
- * 4 world position, 5 a colour per card row, 6 final radiance.
- * Inputs: as surface_cache_direct (texel_card, card tables and layers), sc_direct, sc_indirect.
+ * 4 world position, 5 a colour per card row, 6 final radiance, 7 update heat: frames since the
+ * texel's tile was last relit (surface_cache_pages.py), green (this frame) to red (8 or more),
+ * magenta never since the lighting was reset.
+ * Inputs: as surface_cache_direct (texel_card, card tables and layers), sc_direct, sc_indirect,
+ * sc_tile_age (per 32x32 tile: frames since its update, -1 never).
  * Output out_image: rgb, w = 1 where the texel holds a surface, else 0.
  */
 #define PI 3.14159265358979
@@ -46,6 +49,11 @@ void main()
   }
   else if (layer_mode == 5) {
     v = sc_row_colour(row);
+  }
+  else if (layer_mode == 7) {
+    float age = texelFetch(sc_tile_age, px / 32, 0).x;
+    float t = clamp(age / 8.0, 0.0, 1.0);
+    v = age < 0.0 ? vec3(1.0, 0.0, 1.0) : vec3(t, 1.0 - t, 0.0);
   }
   else {
     v = texelFetch(sc_final, px, 0).rgb;

@@ -60,3 +60,12 @@ def test_never_lit_tiles_come_first_after_a_reset():
     assert table.shape == (1, 5, 4) and np.array_equal(table[0, :, :2], s.tiles[idx])
     s.commit(idx, 1)
     assert s.tile_frame[s.tiles[idx[0], 1], s.tiles[idx[0], 0]] == 1
+
+
+def test_ages_for_the_heat_view():
+    s = PageSchedule(*atlas())
+    assert (s.ages() == -1).all()                    # never relit (and the empty tile)
+    s.commit(np.array([0, 1]), 5)
+    s.commit(np.array([1]), 7)
+    a = s.ages()
+    assert a[0, 0] == 2 and a[0, 1] == 0 and a[0, 2] == -1 and a[2, 3] == -1

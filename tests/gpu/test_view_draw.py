@@ -71,8 +71,16 @@ viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 1)
 moved = dict(changes=engine.LAST_RENDER["changes"], albedo=engine.LAST_RENDER["albedo"].copy())
 sun.rotation_euler = (1.0, -0.4, 0.0)
 viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 1)
+light_changes = engine.LAST_RENDER["changes"]
 np.save("moved_albedo.npy", moved["albedo"])
-emit(results=results, moved_changes=moved["changes"], light_changes=engine.LAST_RENDER["changes"])
+# a budget of one tile per frame: the update-heat view shows fresh and not-yet-relit tiles
+scene.lumen.cache_texels_per_frame = 1024
+scene.lumen.debug_view = "SC_UPDATES"
+out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 3,
+                           lambda i: engine.LAST_RENDER["gi_sc_tiles"])
+np.save("heat.npy", engine.LAST_RENDER["shown"])
+emit(results=results, moved_changes=moved["changes"], light_changes=light_changes,
+     heat_tiles=out["after"])
 """
 
 
@@ -104,6 +112,15 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
         red = (albedo[..., 0] > 0.5) & (albedo[..., 1] < 0.2)
         return np.argwhere(red)[:, 1].mean()
     assert red_x(np.load(tmp_path / "moved_albedo.npy")) > red_x(np.load(tmp_path / "full_albedo.npy")) + 3
+
+    # the budget: one tile per redraw, and the heat view shows it (green) next to tiles relit
+    # some frames ago (yellow to red)
+    tiles = res.result["heat_tiles"]
+    assert all(t[0] == 1 for t in tiles) and tiles[0][1] > 3, tiles
+    heat = np.load(tmp_path / "heat.npy")[..., :3]
+    fresh = (heat[..., 1] > 0.9) & (heat[..., 0] < 0.2) & (heat[..., 2] < 0.1)
+    older = (heat[..., 0] > 0.2) & (heat[..., 2] < 0.1)
+    assert fresh.sum() > 0 and older.sum() > 0, (fresh.sum(), older.sum())
 
     # Pixel Size 2: the frame runs at 32x32 and is drawn over the whole 64x64 region
     assert all(d["width"] == 32 and d["height"] == 32 and d["pixel_size"] == 2 for d in half), half

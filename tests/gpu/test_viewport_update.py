@@ -79,7 +79,7 @@ baked = bake_op.LAST_BAKES[scene.name]
 render("rebake_new_mesh")
 views = {{}}
 for view in ("STEPS", "DEPTH", "NORMAL", "ALBEDO", "DIRECT", "INDIRECT", "HYBRID", "SC_FINAL",
-             "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS", "PROBES",
+             "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS", "SC_UPDATES", "PROBES",
              "PROBE_FALLBACK", "COMBINED"):
     scene.lumen.debug_view = view
     bpy.ops.render.render()
@@ -123,6 +123,10 @@ def test_moves_reupload_only_what_changed(tmp_path):
     assert views["STEPS"]["max_steps"] > 0 and views["NORMAL"]["max_steps"] is None
     mem = run.result["memory"]
     assert mem["atlas"] > 0 and mem["objects"] == 4 * 9 * 16   # 4 instances x 9 RGBA32F texels
+    # screen-size targets are counted: 4 RGBA32F G-buffer attachments, 32-bit depth, 2 + 2 images
+    px = SIZE * SIZE
+    assert mem["screen_gbuffer"] == px * 16 * 4 and mem["screen_depth"] == px * 4
+    assert mem["screen_direct"] == mem["screen_composite"] == px * 16 * 2
 
     img = np.load(tmp_path / "images.npz")
     np.testing.assert_array_equal(img["first"], img["again"])   # F12 GI is deterministic
