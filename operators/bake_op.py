@@ -29,6 +29,12 @@ RUNNING = {}
 POLL_SECONDS = 0.1
 
 
+def cancels(event) -> bool:
+    """Esc pressed: the running bake stops. Only Esc: a right-click is the artist working in
+    another editor (context menus) while the bake runs, never a request to stop it."""
+    return event.type == 'ESC' and event.value == 'PRESS'
+
+
 def settings_from(scene) -> BakeSettings:
     s = scene.lumen
     return BakeSettings(voxel_density=float(s.voxel_density), max_resolution=int(s.max_resolution),
@@ -268,7 +274,7 @@ class LUMEN_OT_bake(bpy.types.Operator):
 
     def _modal(self, context, event):
         job = self._job
-        if event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
+        if cancels(event):
             job.cancel.set()
             self._show(context, "cancelling")
             return {'RUNNING_MODAL'}

@@ -248,3 +248,16 @@ def test_paths_starting_with_tilde_mean_the_home_folder(blender, tmp_path):
     assert (home / "lumen_tilde_cache" / "manifest.json").is_file()
     assert (home / "lumen_tilde_export" / "manifest.json").is_file()
     assert not r["literal"], "a folder named '~' was made in the working directory"
+
+
+def test_only_esc_cancels_a_running_bake(blender):
+    """A right-click anywhere used to cancel a running bake; only Esc does now."""
+    res = blender("""
+        from types import SimpleNamespace as E
+        from lumen_gi.operators.bake_op import cancels
+        emit(esc=cancels(E(type='ESC', value='PRESS')),
+             esc_release=cancels(E(type='ESC', value='RELEASE')),
+             right=cancels(E(type='RIGHTMOUSE', value='PRESS')),
+             timer=cancels(E(type='TIMER', value='NOTHING')))
+    """)
+    assert res.result == {"esc": True, "esc_release": False, "right": False, "timer": False}
