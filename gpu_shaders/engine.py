@@ -264,7 +264,9 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
     MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled))
     LAST_RENDER.update(
         view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
-        sky=sky, notes=list(warnings) + sky_notes, triangles=gbuf["triangles"],
+        sky=sky, notes=list(warnings) + sky_notes + [
+            f"{name}: its transform cannot be inverted (a scale of 0?): it casts and bounces no "
+            f"light" for name in state.left_out], triangles=gbuf["triangles"],
         gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
@@ -361,6 +363,8 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             vp, cam_pos, clip_end = view_projection(depsgraph, scene.camera, width, height)
             passes = frame(depsgraph, scene, vp, cam_pos, clip_end, width, height,
                            debug_view(scene), final=True)
+            for note in LAST_RENDER.get("notes", []):
+                self.report({'WARNING'}, f"Lumen GI: {note}")
         except Exception as exc:   # reported, never raised into Blender's render job
             import traceback
             self.report({'ERROR'}, f"Lumen GI: {exc}")

@@ -23,6 +23,7 @@ import numpy as np
 from gpu_extras.batch import batch_for_shader
 
 from . import resources
+from .packing import singular
 from .resources import glsl
 
 ATTACHMENTS = ("position", "normal", "albedo", "emission")
@@ -89,6 +90,8 @@ def scene_triangles(objects):
         if not len(tris) or not getattr(ob, "camera_visible", True):
             continue          # invisible to the camera: in the SDF and cards, not in the image
         m = np.asarray(ob.matrix_world, np.float64)
+        if singular(m):
+            continue          # scaled to 0 (or not finite): Blender draws nothing of it either
         v = np.asarray(ob.vertices, np.float64) @ m[:3, :3].T + m[:3, 3]
         p = v[tris].reshape(-1, 3)
         normal_m = np.linalg.inv(m[:3, :3]).T

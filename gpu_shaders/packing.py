@@ -27,7 +27,8 @@ import numpy as np
 
 BRICK = 8
 OBJECT_TEXELS = 9
-MAX_BRICKS_PER_AXIS = 256        # 2048 texels: the smallest 3D texture limit of GL 4.5 drivers
+MAX_BRICKS_PER_AXIS = 256
+PARKED = 1e30                    # bounding-sphere centre of an instance left out (singular transform)        # 2048 texels: the smallest 3D texture limit of GL 4.5 drivers
 INDIRECTION_WIDTH = 4096
 FLOAT_EXACT = 1 << 24
 
@@ -105,6 +106,32 @@ def object_row(world_to_local, origin, voxel_size, brick_grid, band, bounds_min,
     return row.astype(np.float32)
 
 
+def singular(matrix_world) -> bool:
+    """True for a transform the SDF scene cannot invert: non-finite, or a 3x3 part with a zero
+    (or nearly zero) scale, e.g. an object scaled to 0 (Blender draws nothing for it)."""
+    mw = np.asarray(matrix_world, np.float64)
+    if mw.shape != (4, 4) or not np.isfinite(mw).all():
+        return True
+    s = np.linalg.svd(mw[:3, :3], compute_uv=False)
+    return bool(s.min() <= 1e-9 * max(s.max(), 1e-30))
+
+
+def instance_row(sdf, matrix_world, indirection_offset: int, mip: int = 0) -> np.ndarray:
+    """The object-table row of one instance of mesh `sdf`. A singular transform gets a parked
+    row: identity placement and a bounding sphere 1e30 m away, which sdf_scene always skips, so
+    the instance casts and bounces nothing (as Blender shows nothing of it) and the rows of the
+    other instances keep their indices."""
+    m = sdf.mips[mip]
+    mw = np.asarray(matrix_world, np.float64)
+    if singular(mw):
+        row = object_row(np.eye(4), sdf.origin, m.voxel_size, m.brick_grid, m.band,
+                         sdf.bounds_min, sdf.bounds_max, indirection_offset, 1.0)
+        row[8] = (PARKED, PARKED, PARKED, 0.0)
+        return row
+    return object_row(np.linalg.inv(mw), sdf.origin, m.voxel_size, m.brick_grid, m.band,
+                      sdf.bounds_min, sdf.bounds_max, indirection_offset, local_to_world_scale(mw))
+
+
 def pack_scene(meshes: dict, instances, mip: int = 0, indirection_width: int = INDIRECTION_WIDTH) -> PackedScene:
     """Pack `meshes` (key -> lumen_addon.sdf.MeshSDF) and `instances` (objects with `.name`,
     `.mesh` (a key) and `.matrix_world`, e.g. lumen_addon.bake.Instance) for the GPU.
@@ -136,14 +163,8 @@ def pack_scene(meshes: dict, instances, mip: int = 0, indirection_width: int = I
     table = np.full(rows * width, -1, np.int32)
     if ni:
         table[:ni] = np.concatenate(ind_parts)
-    objects = []
-    for inst in instances:
-        sdf = meshes[inst.mesh]
-        m = sdf.mips[mip]
-        mw = np.asarray(inst.matrix_world, np.float64)
-        objects.append(object_row(np.linalg.inv(mw), sdf.origin, m.voxel_size, m.brick_grid, m.band,
-                                  sdf.bounds_min, sdf.bounds_max, ind_offset[inst.mesh],
-                                  local_to_world_scale(mw)))
+    objects = [instance_row(meshes[inst.mesh], inst.matrix_world, ind_offset[inst.mesh], mip)
+               for inst in instances]
     objs = np.stack(objects) if objects else np.zeros((0, OBJECT_TEXELS, 4), np.float32)
     return PackedScene(atlas, grid, table.reshape(rows, width), objs, keys, brick_offset, ind_offset,
                        [inst.name for inst in instances], nb)

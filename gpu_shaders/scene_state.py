@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .packing import local_to_world_scale, object_row
+from .packing import instance_row, singular
 
 RESOURCES = ("atlas", "indirection", "objects", "lights", "cards")
 
@@ -65,6 +65,7 @@ class SceneState:
         self.mesh_keys = None        # frozenset of baked mesh hashes on the GPU
         self.names = None            # instance names of the object table on the GPU
         self.matrices = None         # their matrices
+        self.left_out = []           # instances with a singular transform (parked rows)
         self.lights = None           # light rows last synced
         self.resources = None        # resources.SceneResources (atlas, indirection, objects)
         self.light_texture = None    # RGBA32F, 4 texels per light row (at least one row)
@@ -111,6 +112,8 @@ class SceneState:
             self.cards_key = card_key(bake)
         self.names, self.matrices, self.bake = names, mats, bake
         self.mesh_keys = frozenset(keys)
+        # instances whose transform cannot be inverted (scale 0): parked, named in the notes
+        self.left_out = [n for n, m in zip(names, mats) if singular(m)]
         for name in changes:
             self.uploads[name] += 1
         self.syncs += 1
@@ -145,13 +148,8 @@ class SceneState:
         from .resources import float_buffer
 
         packed = self.resources.packed
-        rows = []
-        for key, mw in zip(keys, mats):
-            sdf = bake.meshes[key]
-            m = sdf.mips[0]
-            rows.append(object_row(np.linalg.inv(mw), sdf.origin, m.voxel_size, m.brick_grid,
-                                   m.band, sdf.bounds_min, sdf.bounds_max,
-                                   packed.indirection_offset[key], local_to_world_scale(mw)))
+        rows = [instance_row(bake.meshes[key], mw, packed.indirection_offset[key])
+                for key, mw in zip(keys, mats)]
         if not rows:
             raise ValueError("the bake has no objects to trace")
         packed.objects = np.stack(rows)
