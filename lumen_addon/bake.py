@@ -142,6 +142,7 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
     if not objects:
         raise SceneBakeError([("scene", "no visible mesh objects to bake")])
     problems, instances, todo, card_todo, digests = [], [], {}, {}, {}
+    warnings = []
     for obj in objects:
         m = np.asarray(obj.matrix_world, dtype=np.float64)
         if m.shape != (4, 4) or not np.isfinite(m).all():
@@ -149,7 +150,10 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
             continue
         try:
             # Validate here so that one bad object stops the bake before any time is spent.
-            clean_mesh(obj.vertices, obj.triangles)
+            checked = clean_mesh(obj.vertices, obj.triangles)
+            if checked.ignored_vertices:
+                warnings.append((obj.name, f"{checked.ignored_vertices} loose vertices (no face "
+                                           f"uses them) are NaN or infinite: ignored"))
             plan_resolution(np.ones(3), settings.voxel_density, obj.resolution_scale,
                             settings.max_resolution)
         except MeshError as exc:
@@ -166,7 +170,7 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         if not (np.isfinite(value) and value > 0):
             raise SceneBakeError([("scene", f"{name} must be a positive number, got {value!r}")])
 
-    meshes, warnings, reused = {}, [], 0
+    meshes, reused = {}, 0
     old = previous.meshes if previous is not None else {}
     cost = {k: max(len(o.triangles), 1) ** 0.5 for k, o in todo.items() if k not in old}
     total, done = (sum(cost.values()) or 1.0) / SDF_SHARE, 0.0

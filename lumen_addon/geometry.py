@@ -22,13 +22,15 @@ class CleanMesh:
     triangles: np.ndarray
     dropped_degenerate: int
     kept: np.ndarray           # indices of the input triangles that were kept
+    ignored_vertices: int = 0  # loose vertices (no face uses them) that were NaN or infinite
 
 
 def clean_mesh(vertices, triangles) -> CleanMesh:
     """Validate a triangle soup and drop zero-area triangles.
 
     Raises MeshError for: wrong shapes, no triangles, indices out of range, non-finite vertices
-    used by a triangle, or a mesh whose every triangle is degenerate.
+    used by a triangle, or a mesh whose every triangle is degenerate. Non-finite vertices that
+    no face uses are ignored (counted in ignored_vertices).
     """
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles)
@@ -47,6 +49,11 @@ def clean_mesh(vertices, triangles) -> CleanMesh:
     bad = ~np.isfinite(v[used]).all(axis=1)
     if bad.any():
         raise MeshError(f"{int(bad.sum())} vertices are NaN or infinite")
+    loose_bad = ~np.isfinite(v).all(axis=1)
+    ignored = int(loose_bad.sum())
+    if ignored:       # loose (no face uses them): moved onto a used vertex, so no bound sees them
+        v = v.copy()
+        v[loose_bad] = v[used[0]]
     tri = v[t]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     area2 = np.einsum("ij,ij->i", cross, cross)
@@ -55,7 +62,7 @@ def clean_mesh(vertices, triangles) -> CleanMesh:
     keep = area2 > (extent * extent * 1e-12) ** 2
     if not keep.any():
         raise MeshError("every face is degenerate (zero area)")
-    return CleanMesh(v, t[keep], int((~keep).sum()), np.flatnonzero(keep))
+    return CleanMesh(v, t[keep], int((~keep).sum()), np.flatnonzero(keep), ignored)
 
 
 class TrianglePairs:

@@ -300,3 +300,19 @@ def test_concurrent_writers_leave_a_complete_cache(tmp_path):
         assert [p.wait(timeout=300) for p in procs] == [0, 0]
         bake = read_cache(folder)           # raises CacheError if a named file is missing
         assert len(bake.instances) == 1
+
+
+def test_loose_nan_vertex_is_ignored_with_a_warning_naming_the_object():
+    """A NaN vertex that no face uses failed the bake ("Maximum allowed dimension exceeded", no
+    object named); now it is ignored, the bake equals the clean mesh's and a warning names it."""
+    v, f = shapes.box()
+    loose = np.vstack([v, [[np.nan, 0.0, 0.0], [np.inf, 1.0, 2.0]]])
+    bake = bake_scene([ObjectInput("Loose", loose, f)], BakeSettings(voxel_density=10))
+    clean = bake_scene([ObjectInput("Clean", v, f)], BakeSettings(voxel_density=10))
+    assert bake.warnings == [("Loose", "2 loose vertices (no face uses them) are NaN or infinite: "
+                                       "ignored")]
+    (a,), (b,) = bake.meshes.values(), clean.meshes.values()
+    p = np.random.default_rng(1).uniform(-0.7, 0.7, (400, 3))
+    assert np.array_equal(a.sample(p), b.sample(p))
+    (ca,), (cb,) = bake.cards.values(), clean.cards.values()
+    assert len(ca.cards) == len(cb.cards) and ca.coverage == cb.coverage
