@@ -27,8 +27,8 @@ import numpy as np
 
 BRICK = 8
 OBJECT_TEXELS = 9
-MAX_BRICKS_PER_AXIS = 256
-PARKED = 1e30                    # bounding-sphere centre of an instance left out (singular transform)        # 2048 texels: the smallest 3D texture limit of GL 4.5 drivers
+MAX_BRICKS_PER_AXIS = 256        # 2048 texels: the smallest 3D texture limit of GL 4.5 drivers
+PARKED = 1e30                    # bounding-sphere centre of an instance left out (singular transform)
 INDIRECTION_WIDTH = 4096
 FLOAT_EXACT = 1 << 24
 

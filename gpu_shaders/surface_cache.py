@@ -74,7 +74,6 @@ class SurfaceCache:
         self.direct = self._make("direct", (lw, lh), 'RGBA32F', zero)
         self.indirect = self._make("indirect", (lw, lh), 'RGBA32F', zero)
         self.final = self._make("final", (lw, lh), 'RGBA32F', zero)
-        self.frames = 0                # indirect passes accumulated since the last reset
         # Radiosity probes, kept across frames: a frame relights only some tiles (pages), the
         # others keep their last rays, probes and SH for the filter and the interpolation.
         gw, gh = -(-lw // 4), -(-lh // 4)
@@ -108,7 +107,6 @@ class SurfaceCache:
         for tex in self.probe_textures.values():
             tex.clear(format='FLOAT', value=(0.0, 0.0, 0.0, 0.0))
         self.pages.reset()
-        self.frames = 0
 
     # --- binding for other passes ------------------------------------------------------------
     @staticmethod
@@ -141,12 +139,14 @@ class SurfaceCache:
         if budget > 0:
             idx, blends = self.pages.choose(budget, frame, history, **(where or {}))
         else:
-            idx = np.arange(len(self.pages))
-            blends = np.full(len(idx), float(blend))
+            idx, blends = self._all_tiles(blend)
         self.pages.commit(idx, frame)
         tw, th = self.pages.grid
         self.tile_frame = _tex((tw, th), 'R32F', self.pages.tile_frame)
         return idx, blends
+
+    def _all_tiles(self, blend: float = 1.0) -> tuple:
+        return np.arange(len(self.pages)), np.full(len(self.pages), float(blend))
 
     def _page_table(self, tiles):
         idx, blends = tiles
@@ -155,7 +155,7 @@ class SurfaceCache:
     def light_direct(self, resources: SceneResources, light_tex, light_count: int,
                      light_samples: int = 8, tiles=None):
         """surface_cache_direct: E_direct of the lighting texels of `tiles` (plan(); None: all)."""
-        tiles = tiles if tiles is not None else (np.arange(len(self.pages)), np.ones(len(self.pages)))
+        tiles = tiles if tiles is not None else self._all_tiles()
         if not len(tiles[0]):
             return
         sh = pass_shader("surface_cache_direct", ("surface_cache_pages_lib.glsl", "light_lib.glsl"),
@@ -236,7 +236,6 @@ class SurfaceCache:
         sh.uniform_sampler("sc_tile_frame", self.tile_frame)
         sh.image("out_image", self.indirect)                            # in place: read, blend
         compute.run(sh, k * TILE // GROUP, TILE // GROUP, 1)            # one per texel
-        self.frames += 1
         return k
 
     def combine(self, resources: SceneResources):
@@ -261,8 +260,7 @@ class SurfaceCache:
         sh = pass_shader("surface_cache_layer", (), ("sc_direct", "sc_indirect", "sc_tile_age"),
                          (('INT', 'layer_mode'),))
         tw, th = self.pages.grid
-        age = self.pages.ages()            # held until the dispatch
-        ages = _tex((tw, th), 'R32F', age)
+        ages = _tex((tw, th), 'R32F', self.pages.ages())     # held until the dispatch
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)

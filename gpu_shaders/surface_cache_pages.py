@@ -38,10 +38,10 @@ class PageSchedule:
         padded = np.full((th * TILE, tw * TILE), -1, np.int64)
         padded[:h, :w] = np.rint(texel_card).astype(np.int64)
         per_tile = padded.reshape(th, TILE, tw, TILE).transpose(0, 2, 1, 3).reshape(th * tw, -1)
-        tile_id, rows = np.nonzero(per_tile >= 0)
-        pairs = np.unique(tile_id * (int(padded.max()) + 2) + per_tile[tile_id, rows])
-        pair_tile = pairs // (int(padded.max()) + 2)
-        pair_row = pairs % (int(padded.max()) + 2)
+        tile_id, col = np.nonzero(per_tile >= 0)
+        stride = int(padded.max()) + 2                                   # > every card row
+        pairs = np.unique(tile_id * stride + per_tile[tile_id, col])     # (tile, row), sorted
+        pair_tile, pair_row = pairs // stride, pairs % stride
         used, first = np.unique(pair_tile, return_index=True)           # tiles holding a card
         self.tiles = np.stack([used % tw, used // tw], axis=1).astype(np.int32)
         self.row_start = first                                           # CSR into pair_row

@@ -42,12 +42,17 @@ def pip_platform(wheel_name: str) -> str:
     return tags[-1]
 
 
-def python_version(wheel_name: str) -> str:
-    """The --python-version pip needs for this wheel file: its cpXY tag (cp313 -> 3.13)."""
-    tag = wheel_name[:-len(".whl")].split("-")[-3]
+def python_tag(wheel_name: str) -> str:
+    """The CPython tag of a wheel file name: 'cp311' of embreex-4.4.0.post1-cp311-cp311-....whl."""
+    tag = Path(wheel_name).name[:-len(".whl")].split("-")[-3]
     if not (tag.startswith("cp3") and tag[3:].isdigit()):
         raise ValueError(f"{wheel_name}: expected a CPython 3 tag such as cp311, found {tag!r}")
-    return f"3.{tag[3:]}"
+    return tag
+
+
+def python_version(wheel_name: str) -> str:
+    """The --python-version pip needs for this wheel file (cp313 -> 3.13)."""
+    return f"3.{python_tag(wheel_name)[3:]}"
 
 
 def download_wheels(data: dict) -> list[Path]:
@@ -134,8 +139,7 @@ def main(argv=None) -> int:
 
 def python_tags(data: dict) -> list[str]:
     """The CPython tags of the manifest's wheels, oldest first: ['cp311', 'cp313']."""
-    return sorted({Path(w).name[:-len(".whl")].split("-")[-3] for w in data.get("wheels", [])},
-                  key=lambda t: int(t[3:]))
+    return sorted({python_tag(w) for w in data.get("wheels", [])}, key=lambda t: int(t[3:]))
 
 
 def stage_source(stage: Path, tag: str) -> Path:
@@ -152,7 +156,7 @@ def stage_source(stage: Path, tag: str) -> Path:
     (stage / "wheels").mkdir()
     for rel in manifest().get("wheels", []):
         name = Path(rel).name
-        if name.split("-")[-3] == tag:
+        if python_tag(name) == tag:
             shutil.copy2(ROOT / "wheels" / name, stage / "wheels" / name)
     text = (ROOT / "blender_manifest.toml").read_text(encoding="utf-8")
     kept = [line for line in text.splitlines(keepends=True)

@@ -84,6 +84,17 @@ def geometry_nodes_scatter(name: str, instance_node: str = "GeometryNodeMeshIcoS
     return plane
 
 
+def aimed_camera(location, target=(0.0, 0.0, 0.0), name="Cam"):
+    """A new camera at `location` looking at `target`, made the scene camera."""
+    import mathutils
+
+    cam = link(bpy.data.objects.new(name, bpy.data.cameras.new(name)))
+    cam.location = location
+    cam.rotation_euler = (mathutils.Vector(target) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    bpy.context.scene.camera = cam
+    return cam
+
+
 def bake(op=None, **kwargs):
     """Run an operator; returns (result set or None, error text or None)."""
     op = op or bpy.ops.lumen.bake

@@ -11,7 +11,6 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 from blender_runner import run_python  # noqa: E402
 
 SNIPPET = """
-import mathutils
 from lumen_gi.gpu_shaders import engine
 
 scene = empty_scene(voxel_density=10.0, cache_dir="cache")
@@ -21,10 +20,7 @@ ghost = cube("Ghost", 1.0, (1.0, 1.0, 0.5))
 sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
 sun.data.energy = 3.0
 sun.rotation_euler = (0.6, 0.3, 0.0)
-cam = link(bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam")))
-scene.camera = cam
-cam.location = (0.0, -5.0, 4.0)
-cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.3)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+cam = aimed_camera((0.0, -5.0, 4.0), (0.0, 0.0, 0.3))
 scene.render.engine = "LUMEN_GI"
 scene.lumen.gi_quality = "OFF"
 scene.render.resolution_x = scene.render.resolution_y = 48

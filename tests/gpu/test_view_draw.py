@@ -16,7 +16,6 @@ from blender_runner import run_python  # noqa: E402
 SIZE = 64
 
 SNIPPET = f"""
-import mathutils
 from lumen_gi.gpu_shaders import engine
 
 scene = empty_scene(voxel_density=12.0, cache_dir="cache")
@@ -30,10 +29,7 @@ box.data.materials.append(principled("BoxMat", (0.9, 0.05, 0.05)))
 sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
 sun.data.energy = 3.0
 sun.rotation_euler = (0.5, 0.3, 0.0)
-cam = link(bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam")))
-scene.camera = cam
-cam.location = (0.0, -5.0, 4.0)
-cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.3)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+cam = aimed_camera((0.0, -5.0, 4.0), (0.0, 0.0, 0.3))
 scene.render.engine = "LUMEN_GI"
 scene.lumen.gi_quality = "LOW"
 scene.lumen.viewport_gi_quality = "LOW"
@@ -129,16 +125,12 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
 
 
 NO_BAKE = f"""
-import mathutils
 import viewport_harness
 from lumen_gi.gpu_shaders import engine
 
 scene = empty_scene(voxel_density=12.0, cache_dir="never_baked")
 cube("Box", 0.8, (0.0, 0.0, 0.4))
-cam = link(bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam")))
-scene.camera = cam
-cam.location = (0.0, -5.0, 4.0)
-cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.3)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+cam = aimed_camera((0.0, -5.0, 4.0), (0.0, 0.0, 0.3))
 scene.render.engine = "LUMEN_GI"
 out = viewport_harness.run(scene, engine.LumenGIRenderEngine, 256, 64)
 np.save("drawn.npy", out["drawn"])
