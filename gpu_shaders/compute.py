@@ -3,7 +3,7 @@ an image, allocate and read RGBA32F textures. Needs a GPU context.
 
 A pass is declared by what it reads: `scene` (sdf_lib.glsl's three samplers; sdf_ray_lib.glsl
 comes with it), `surface_cache`
-(surface_cache_lib.glsl's), `global_sdf` (global_sdf_lib.glsl's), extra 2D float samplers, images
+(surface_cache_lib.glsl's), `global_sdf` (global_sdf_lib.glsl's), `sky` (sky_lib.glsl's), extra 2D float samplers, images
 (binding order = listed order, RGBA32F unless given) and push constants; its source is the
 libraries it needs followed by glsl/<name>.comp.glsl.
 """
@@ -50,10 +50,11 @@ def run(sh, groups_x: int, groups_y: int = 1, groups_z: int = 1):
 
 
 def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), scene=False,
-           surface_cache=False, global_sdf=False):
+           surface_cache=False, global_sdf=False, sky=False):
     """The compute shader of glsl/<name>.comp.glsl (cached by name). images: names or
     (name, format) or (name, format, qualifiers such as {'READ', 'WRITE'}: write-only unless
-    given); push: (type, name)."""
+    given); push: (type, name). sky: sky_lib.glsl and its sampler (implied by gi_trace_lib.glsl,
+    whose rays read the sky where they leave the scene)."""
     if name in _SHADERS:
         return _SHADERS[name]
     info = new_info()
@@ -71,6 +72,10 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
         src.append(glsl("global_sdf_lib.glsl"))
     if surface_cache:
         src.append(glsl("surface_cache_lib.glsl"))
+    if sky or "gi_trace_lib.glsl" in libs:
+        from .sky_light import SkyLight
+        slot = SkyLight.declare(info, slot)
+        src.append(glsl("sky_lib.glsl"))
     for s in samplers:
         info.sampler(slot, 'FLOAT_2D', s)
         slot += 1

@@ -1,10 +1,10 @@
 """The direct light pass (glsl/direct_light.comp.glsl): per G-buffer pixel, Lambert diffuse
 direct light of every light (operators/lights.py rows) with SDF cone-traced soft shadows, sky
-light from the world colour occluded by SDF cones, and emission.
+light from the world's maps (sky_light.SkyLight) occluded by SDF cones, and emission.
 
 Outputs follow Cycles' pass conventions so they compare directly:
     direct   = E / pi          (Cycles "Diffuse Direct", DiffDir: albedo excluded)
-    combined = albedo * direct + emission  (sky radiance on the background)
+    combined = albedo * direct + emission  (the world on the background)
 Needs a GPU context.
 """
 from __future__ import annotations
@@ -12,11 +12,13 @@ from __future__ import annotations
 import time
 
 import gpu
+import mathutils
 import numpy as np
 
 from . import compute
 from .gbuffer import ATTACHMENTS, read_texture
 from .resources import SceneResources, float_buffer, glsl
+from .sky_light import SkyLight
 
 GROUP = 8
 SKY_CONES = 8
@@ -32,21 +34,22 @@ def direct_shader():
             info.sampler(slot, 'FLOAT_2D', "gbuf_" + name)
             slot += 1
         info.sampler(slot, 'FLOAT_2D', "lights")
+        slot = SkyLight.declare(info, slot + 1)
         info.image(0, 'RGBA32F', 'FLOAT_2D', 'direct_out', qualifiers={'WRITE'})
         info.image(1, 'RGBA32F', 'FLOAT_2D', 'combined_out', qualifiers={'WRITE'})
-        info.push_constant('VEC3', 'sky')
         info.push_constant('VEC3', 'cam_pos')
         info.push_constant('INT', 'light_count')
         info.push_constant('INT', 'light_samples')
         info.push_constant('INT', 'sky_cones')
-        _SHADER["direct"] = compute.create(
-            info, glsl("sdf_lib.glsl") + "\n" + glsl("light_lib.glsl") + "\n"
-            + glsl("direct_light.comp.glsl"))
+        info.push_constant('MAT4', 'inv_view_proj')
+        _SHADER["direct"] = compute.create(info, "\n".join(glsl(name) for name in (
+            "sdf_lib.glsl", "light_lib.glsl", "sky_lib.glsl", "camera_lib.glsl",
+            "direct_light.comp.glsl")))
     return _SHADER["direct"]
 
 
-def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky, cam_pos,
-          width: int, height: int, sky_cones: int = SKY_CONES, light_texture=None,
+def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLight, cam_pos,
+          inv_view_proj, width: int, height: int, sky_cones: int = SKY_CONES, light_texture=None,
           light_samples: int = LIGHT_SAMPLES) -> dict:
     """Run the pass; returns {'direct': float32 [h, w, 4], 'combined': [h, w, 4], timings}.
     `light_texture`: the rows already on the GPU (SceneState.light_texture), else made here.
@@ -68,7 +71,9 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky, cam_po
     shader.uniform_sampler("lights", light_tex)
     shader.image("direct_out", direct)
     shader.image("combined_out", combined)
-    shader.uniform_float("sky", [float(c) for c in np.asarray(sky, np.float64)[:3]])
+    sky.bind(shader)
+    shader.uniform_float("inv_view_proj",
+                         mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
     shader.uniform_float("cam_pos", [float(c) for c in np.asarray(cam_pos, np.float64)[:3]])
     shader.uniform_int("light_count", count)
     shader.uniform_int("light_samples", int(light_samples))

@@ -200,12 +200,14 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
     GI iteration into the history) alike: sync the scene state, run the passes.
     Returns {pass name: float32 [h, w, C]} and fills LAST_RENDER."""
     from ..operators.extract import extract_scene
-    from ..operators.lights import light_table, world_colour
+    from ..operators.lights import light_table
+    from ..operators.world_capture import world_light
     from . import composite, compute, direct_light, gbuffer, gi, gi_settings
 
     t0 = time.perf_counter()
     bake, source = scene_bake(scene)
-    lights = light_table(depsgraph)
+    sky_maps, sky_notes = world_light(scene)     # remembered per world: a capture only on change
+    lights = np.concatenate([light_table(depsgraph), sky_maps.sun_rows()])
     if view in TRACE_VIEWS:
         objects, warnings = None, []
         matrices = mesh_matrices(depsgraph)
@@ -215,6 +217,8 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
     t1 = time.perf_counter()
     state = state_for(scene.name)
     changes = state.sync(bake, matrices, lights)
+    if state.sky.update(sky_maps):
+        changes.add("sky")
     res = state.resources
     t2 = time.perf_counter()
     LAST_RENDER.update(source=source, width=width, height=height, view=view,
@@ -236,10 +240,11 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         LAST_RENDER["shown"] = img
         return {"Combined": img}
     gi_cfg = gi_settings.from_scene(scene.lumen, viewport=not final)
-    sky, sky_notes = world_colour(scene)
+    sky = state.sky
+    inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
     gbuf = gbuffer.render_gbuffer(objects, view_proj, width, height)
     t3 = time.perf_counter()
-    out = direct_light.shade(res, gbuf, state.lights, sky, cam_pos, width, height,
+    out = direct_light.shade(res, gbuf, state.lights, sky, cam_pos, inv_vp, width, height,
                              sky_cones=0 if gi_cfg.enabled else direct_light.SKY_CONES,
                              light_texture=state.light_texture)
     t4 = time.perf_counter()
@@ -252,7 +257,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
                                    min(float(clip_end), 100.0), width, height, changes, final,
                                    view_proj=view_proj)
         comp = composite.composite(gbuf, out["textures"]["direct"], gi_out["texture"], sky,
-                                   width, height)
+                                   inv_vp, width, height)
         indirect, combined = comp["indirect"], comp["combined"]
         gi_info = dict(gi_seconds=gi_out["timings"]["total"], gi_timings=gi_out["timings"],
                        gi_iterations=gi_out["iterations"], gi_converged=gi_out["converged"],
@@ -264,7 +269,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
     MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled))
     LAST_RENDER.update(
         view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
-        sky=sky, notes=list(warnings) + sky_notes + [
+        sky=sky.mean, sun=sky_maps.sun, notes=list(warnings) + sky_notes + [
             f"{name}: its transform cannot be inverted (a scale of 0?): it casts and bounces no "
             f"light" for name in state.left_out], triangles=gbuf["triangles"],
         gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
@@ -300,7 +305,7 @@ def _hybrid_trace(state, scene, cam_pos, inv_vp, width, height, clip_end):
         cfg = gi_settings.settings("MEDIUM")
     g = gi._global_sdf(state, cfg)
     g.update(cam_pos, state.gi_frame, "objects" in state.last_changes)
-    return trace_view(state.resources, g, state.surface_cache, inv_vp, width, height,
+    return trace_view(state.resources, g, state.surface_cache, state.sky, inv_vp, width, height,
                       min(float(clip_end), 100.0))
 
 

@@ -52,14 +52,14 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     gsdf = _global_sdf(state, gi)
     probes = _probes(state, gi, width, height)
     scene_changed = bool(changes & {"atlas", "objects", "cards", "lights"}) \
-        or state.gi_sky is None or not np.allclose(state.gi_sky, sky)
+        or state.gi_sky != sky.key
     if final or scene_changed or view_key != state.gi_view_key:
         probes.history = None                    # the pixels' history no longer applies
     if final or scene_changed:
         cache.reset_lighting()
     if final:
         state.gi_frame = 0                       # the same jitter sequence every render
-    state.gi_view_key, state.gi_sky = view_key, np.asarray(sky, np.float64).copy()
+    state.gi_view_key, state.gi_sky = view_key, sky.key
     objects_changed = bool(changes & {"atlas", "objects"})
     t1 = time.perf_counter()
     if final:      # F12: every tile, every iteration (deterministic)

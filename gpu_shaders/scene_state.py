@@ -21,6 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from .packing import instance_row, singular
+from .sky_light import SkyLight
 
 RESOURCES = ("atlas", "indirection", "objects", "lights", "cards")
 
@@ -75,7 +76,8 @@ class SceneState:
         self.probes = None           # screen_probes.ScreenProbes (gi.py, per image size)
         self.gi_frame = 0            # frames of GI run (jitter sequences, clipmap cadence)
         self.gi_view_key = None      # camera + size of the probes' history
-        self.gi_sky = None
+        self.gi_sky = None           # key of the sky maps the GI history was made with
+        self.sky = SkyLight()        # the world's maps on the GPU (uploaded when they change)
         self.bake = None
 
     def plan(self, bake, matrices: dict, lights) -> set:
@@ -168,4 +170,5 @@ class SceneState:
                         if k != "total"})
         if self.probes is not None:
             out.update(self.probes.stats())
+        out.update(self.sky.stats())
         return out

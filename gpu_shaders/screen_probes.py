@@ -65,15 +65,14 @@ class ScreenProbes:
 
         tex["radiance"] = compute.texture((gw * r, gh * r))
         sh = compute.shader("screen_probe_trace", samplers=("probe_info", "probe_normal"),
-                            push=(('VEC3', 'sky'), ('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
-                                  ('FLOAT', 't_max')),
+                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max')),
                             libs=GI_LIBS, scene=True, surface_cache=True, global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
         sh.uniform_sampler("probe_info", tex["info"])
         sh.uniform_sampler("probe_normal", tex["normal"])
-        sh.uniform_float("sky", compute.vec(sky))
+        sky.bind(sh)
         sh.uniform_int("probe_res", r)
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.uniform_float("t_max", float(t_max))
@@ -109,15 +108,15 @@ class ScreenProbes:
         sh = compute.shader("screen_probe_integrate",
                             samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
                                       "probe_sh"),
-                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('VEC3', 'sky'),
-                                  ('INT', 'frame'), ('FLOAT', 't_max')),
+                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
+                                  ('FLOAT', 't_max')),
                             libs=("gbuffer_lib.glsl", "sh_lib.glsl", "probe_interp_lib.glsl")
                             + GI_LIBS,
                             scene=True, surface_cache=True, global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
-        sh.uniform_float("sky", compute.vec(sky))
+        sky.bind(sh)
         sh.uniform_int("frame", int(frame))
         sh.uniform_float("t_max", float(t_max))
         sh.uniform_sampler("gbuf_position", g["position"])
@@ -162,8 +161,8 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     g = gbuf["textures"]
     out = compute.texture((width, height))
     sh = compute.shader("pixel_gather", samplers=("gbuf_position", "gbuf_normal"),
-                        push=(('VEC3', 'cam_pos'), ('VEC3', 'sky'), ('INT', 'rays'),
-                              ('INT', 'frame'), ('FLOAT', 't_max')),
+                        push=(('VEC3', 'cam_pos'), ('INT', 'rays'), ('INT', 'frame'),
+                              ('FLOAT', 't_max')),
                         libs=("gbuffer_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
                         global_sdf=True)
     resources.bind(sh)
@@ -172,7 +171,7 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     sh.uniform_sampler("gbuf_position", g["position"])
     sh.uniform_sampler("gbuf_normal", g["normal"])
     sh.uniform_float("cam_pos", compute.vec(cam_pos))
-    sh.uniform_float("sky", compute.vec(sky))
+    sky.bind(sh)
     sh.uniform_int("rays", int(rays))
     sh.uniform_int("frame", int(frame))
     sh.uniform_float("t_max", float(t_max))
@@ -181,7 +180,7 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     return out
 
 
-def trace_view(resources, gsdf, cache, inv_view_proj, width: int, height: int, t_max: float) -> dict:
+def trace_view(resources, gsdf, cache, sky, inv_view_proj, width: int, height: int, t_max: float) -> dict:
     """glsl/gi_trace_view.comp.glsl: gi_trace per camera ray (the HYBRID debug view).
     Returns {'hit' (-1 miss), 'global' (bool: the hit came from the global-SDF part)}."""
     import mathutils
@@ -193,6 +192,7 @@ def trace_view(resources, gsdf, cache, inv_view_proj, width: int, height: int, t
     resources.bind(sh)
     cache.bind(sh)
     gsdf.bind(sh)
+    sky.bind(sh)
     sh.uniform_float("inv_view_proj", mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
     sh.uniform_float("t_max", float(t_max))
     sh.image("out_image", out)

@@ -190,7 +190,7 @@ class SurfaceCache:
         page_samplers = ("sc_pages", "sc_tile_frame")
         sh = pass_shader("surface_cache_probe_trace",
                          probe_libs + ("gi_trace_lib.glsl",), page_samplers,
-                         (('VEC3', 'sky'), ('INT', 'frame'), ('FLOAT', 't_max')),
+                         (('INT', 'frame'), ('FLOAT', 't_max')),
                          images=("probe_out", "probe_pos_out"), gsdf=True)
         resources.bind(sh)
         self.bind(sh)
@@ -198,7 +198,7 @@ class SurfaceCache:
         sh.uniform_sampler("texel_card", self.texel_card)
         sh.uniform_sampler("sc_pages", pages)
         sh.uniform_sampler("sc_tile_frame", self.tile_frame)
-        sh.uniform_float("sky", [float(c) for c in np.asarray(sky, np.float64)[:3]])
+        sky.bind(sh)
         sh.uniform_int("frame", int(frame))
         sh.uniform_float("t_max", float(t_max))
         sh.image("out_image", t["rays"])

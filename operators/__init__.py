@@ -3,9 +3,10 @@
 Each module registers its own classes; order matters (properties before the operators and panel
 that use them).
 """
-from . import atlas_op, bake_op, export_op, extract, panel, properties, stock_panels
+from . import (atlas_op, bake_op, export_op, extract, panel, properties, stock_panels,
+               world_capture)
 
-_MODULES = (properties, extract, bake_op, export_op, atlas_op, panel, stock_panels)
+_MODULES = (properties, extract, bake_op, export_op, atlas_op, panel, stock_panels, world_capture)
 
 
 def register():

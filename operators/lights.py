@@ -1,4 +1,4 @@
-"""Blender lights and world -> plain float32 arrays for the preview engine (no gpu import).
+"""Blender lights -> plain float32 arrays for the preview engine (no gpu import).
 
 `light_table(depsgraph)` returns one row of 16 float32 per visible light (4 RGBA texels of the
 light texture read by glsl/direct_light.comp.glsl):
@@ -18,9 +18,8 @@ x 1/pi, sun unchanged), so that irradiance E at a surface point, and Cycles' Dif
     area:  approximated as a one-sided small emitter at its centre: colour x P / pi = on-axis
            intensity I0 (W/sr), I = I0 max(cos_light, 0) (P = L A pi for a Lambertian emitter)
 
-`world_colour(scene)` is the uniform sky radiance: the Background node's Color x Strength feeding
-the active World Output (world.color without nodes). A linked Color (environment texture) is not
-evaluated: its unlinked default is used and a note is returned.
+The world is not a row here: operators/world_capture.py turns it into radiance maps (and a sun
+row for a bright HDRI spot).
 """
 from __future__ import annotations
 
@@ -83,31 +82,3 @@ def light_table(depsgraph) -> np.ndarray:
             continue
         rows.append(light_row(obj.data, inst.matrix_world))
     return np.array(rows, np.float32).reshape(-1, ROW)
-
-
-def world_colour(scene):
-    """(linear RGB float32 (3,), notes): the uniform sky radiance of the scene's world."""
-    world = scene.world
-    notes = []
-    if world is None:
-        return np.zeros(3, np.float32), notes
-    tree = world.node_tree
-    if tree is not None:
-        outputs = [n for n in tree.nodes if n.type == 'OUTPUT_WORLD']
-        out = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
-        if out is not None:
-            surface = out.inputs["Surface"]
-            if not surface.is_linked:
-                return np.zeros(3, np.float32), notes
-            node = surface.links[0].from_node
-            while node.type == 'REROUTE' and node.inputs[0].is_linked:
-                node = node.inputs[0].links[0].from_node
-            if node.type == 'BACKGROUND':
-                colour = np.asarray(node.inputs["Color"].default_value[:3], np.float64)
-                if node.inputs["Color"].is_linked:
-                    notes.append("world Background colour is linked (texture): its default "
-                                 "value is used")
-                strength = float(node.inputs["Strength"].default_value)
-                return (colour * strength).astype(np.float32), notes
-            notes.append(f"world surface is a {node.bl_label} node: using world.color")
-    return np.asarray(world.color[:3], np.float32), notes

@@ -1,7 +1,8 @@
 /* Composite: Combined = albedo * (Diffuse Direct + Diffuse Indirect) + emission (Cycles' passes:
- * Diffuse Direct / Indirect = E / pi without the albedo), the sky on the background.
+ * Diffuse Direct / Indirect = E / pi without the albedo), the world on the background.
  * Inputs: gbuf_position, gbuf_albedo, gbuf_emission, direct (E_direct / pi), indirect (E_indirect,
- * irradiance); sky. Outputs: out_image = Combined, indirect_out = E_indirect / pi.
+ * irradiance); sky_maps (sky_lib.glsl), inv_view_proj (camera_lib.glsl).
+ * Outputs: out_image = Combined, indirect_out = E_indirect / pi.
  */
 #define PI 3.14159265358979
 
@@ -13,7 +14,9 @@ void main()
     return;
   }
   if (texelFetch(gbuf_position, px, 0).w < 0.5) {
-    imageStore(out_image, px, vec4(sky, 1.0));
+    vec3 ro, rd;
+    camera_ray(px, size, ro, rd);
+    imageStore(out_image, px, vec4(sky_background(rd), 1.0));
     imageStore(indirect_out, px, vec4(0.0, 0.0, 0.0, 1.0));
     return;
   }

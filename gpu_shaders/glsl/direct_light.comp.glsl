@@ -1,15 +1,55 @@
-/* Lumen GI direct light per pixel from the G-buffer (needs sdf_lib.glsl, light_lib.glsl).
+/* Lumen GI direct light per pixel from the G-buffer (needs sdf_lib.glsl, light_lib.glsl,
+ * sky_lib.glsl, camera_lib.glsl).
  *
  * Inputs: gbuf_position, gbuf_normal, gbuf_albedo, gbuf_emission (gbuffer.glsl), lights
- * (RGBA32F, 4 texels per light row, operators/lights.py), push constants light_count, sky (uniform
- * sky radiance, linear RGB), cam_pos (world), sky_cones (number of sky occlusion cones).
+ * (RGBA32F, 4 texels per light row, operators/lights.py; a sun taken out of the world's map is
+ * one of them), sky_maps (the world), push constants light_count, cam_pos (world), sky_cones
+ * (number of sky occlusion cones), inv_view_proj (camera rays for the background).
  * Outputs (RGBA32F):
  *   direct_out:   Cycles' "Diffuse Direct" convention: E / pi, E the direct irradiance from the
  *                 lights and the sky (a Lambert BSDF without its albedo); 0 on the background
- *   combined_out: albedo * direct + emission; the sky radiance on the background
+ *   combined_out: albedo * direct + emission; the world's radiance on the background
  * Lights, shadows and sky visibility: light_lib.glsl. sky_cones = 0 leaves the sky out (the GI
  * passes add it from their rays' misses instead).
+ *
+ * Sky light: E_sky(n) unoccluded is exact for the map (sky_irradiance: E(n) integrated over all
+ * its pixels); the SDF cones say how much of it is blocked, each cone weighted by the radiance
+ * the sky has in its direction (sky_ray), so a bright zenith blocked by a roof darkens more than
+ * the same cone toward a dark horizon.
  */
+vec3 sky_light(vec3 p, vec3 n, int cones)
+{
+  vec3 E = sky_irradiance(n);
+  if (!any(greaterThan(E, vec3(0.0)))) {
+    return vec3(0.0);
+  }
+  vec3 a = abs(n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+  vec3 u = normalize(cross(n, a));
+  vec3 v = cross(n, u);
+  vec3 seen = vec3(0.0);
+  vec3 all_ = vec3(0.0);
+  float voxel;
+  int nearest;
+  sdf_scene(p, voxel, nearest);
+  for (int i = 0; i < cones; i++) {
+    /* Fibonacci points on the disk, lifted to the hemisphere: cosine distributed. */
+    float r = sqrt((float(i) + 0.5) / float(cones));
+    float phi = float(i) * 2.39996323;
+    vec3 dir = normalize(u * (r * cos(phi)) + v * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - r * r)));
+    vec3 L = sky_ray(dir) + 1e-6;
+    /* An open plane must not occlude its own sky: its field along dir is t sin(e) (e the
+     * cone's elevation), so with the half-voxel thin-wall rule measured from where that field
+     * leaves the receiver's shell (t_shell) and k >= 1 / sin(e) (the cone no wider than its
+     * elevation) the plane reads k sin(e) >= 1, and a convex surface more. With k = 2 for every
+     * cone from the surface a sphere under a uniform sky lost 20% of it. */
+    float elev_sin = max(dot(dir, n), 0.05);
+    float k = max(2.0, 1.0 / elev_sin);
+    seen += L * cone_visibility_shell(p, n, dir, 3.0, k, THIN_VOXELS * voxel / elev_sin);
+    all_ += L;
+  }
+  return E * seen / all_;
+}
+
 void main()
 {
   ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -20,7 +60,9 @@ void main()
   vec4 pos = texelFetch(gbuf_position, px, 0);
   if (pos.w < 0.5) {
     imageStore(direct_out, px, vec4(0.0, 0.0, 0.0, 1.0));
-    imageStore(combined_out, px, vec4(sky, 1.0));
+    vec3 ro, rd;
+    camera_ray(px, size, ro, rd);
+    imageStore(combined_out, px, vec4(sky_background(rd), 1.0));
     return;
   }
   vec3 p = pos.xyz;
@@ -32,8 +74,8 @@ void main()
   for (int i = 0; i < light_count; i++) {
     E += light_irradiance(i, p, n, light_samples, light_rotation(px));
   }
-  if (sky_cones > 0 && any(greaterThan(sky, vec3(0.0)))) {
-    E += PI * sky * sky_visibility(p, n, sky_cones);
+  if (sky_cones > 0) {
+    E += sky_light(p, n, sky_cones);
   }
   vec3 direct = E / PI;
   vec3 albedo = texelFetch(gbuf_albedo, px, 0).rgb;

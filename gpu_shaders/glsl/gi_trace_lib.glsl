@@ -1,11 +1,11 @@
 /* Lumen GI: the rays of the GI passes (needs sdf_lib.glsl, sdf_ray_lib.glsl,
- * global_sdf_lib.glsl, surface_cache_lib.glsl).
+ * global_sdf_lib.glsl, surface_cache_lib.glsl, sky_lib.glsl).
  *
  * gi_trace: sphere tracing through the mesh SDFs while t < GSDF_MESH_SPLIT (1.8 m, lecture 21),
  * the global SDF beyond, both with the thin-wall rule (sdf_ray_lib.glsl).
  * A global-SDF hit is refined with the mesh SDFs over the last 1.5 global voxels (to land on a
  * mesh, whose surface cache is then read); if no mesh is found there the global trace goes on.
- * gi_radiance: the surface cache's final light at the hit (sc_sample_world), gi_sky on a miss.
+ * gi_radiance: the surface cache's final light at the hit (sc_sample_world), sky_ray on a miss.
  */
 #define GI_GLOBAL_STEPS 96
 
@@ -53,7 +53,7 @@ bool gi_trace(vec3 o, vec3 dir, float tmax, out float t, out int obj)
 
 /* Radiance arriving at o from direction dir: the surface cache at the first hit, sky on a miss.
  * hit_t: the hit distance (tmax on a miss); weight: card weight (0 when no card saw the hit). */
-vec3 gi_radiance(vec3 o, vec3 dir, float tmax, vec3 sky, out float hit_t, out float weight)
+vec3 gi_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out float weight)
 {
   int obj;
   if (gi_trace(o, dir, tmax, hit_t, obj)) {
@@ -61,6 +61,6 @@ vec3 gi_radiance(vec3 o, vec3 dir, float tmax, vec3 sky, out float hit_t, out fl
   }
   hit_t = tmax;
   weight = 1.0;
-  return sky;
+  return sky_ray(dir);
 }
 

@@ -1,5 +1,5 @@
-/* Lumen GI: irradiance from Blender's lights with SDF cone-traced soft shadows, and SDF-occluded
- * sky visibility (needs sdf_lib.glsl). Shared by the per-pixel direct pass and the surface cache.
+/* Lumen GI: irradiance from Blender's lights with SDF cone-traced soft shadows (needs
+ * sdf_lib.glsl). Shared by the per-pixel direct pass and the surface cache.
  *
  * Inputs: sampler2D lights (RGBA32F, 4 texels per light row, operators/lights.py).
  * Shadows: SDF cone tracing, visibility = min over steps of k * (d - 0.5 voxel) / t (k from the
@@ -9,11 +9,12 @@
  * itself (cone_visibility: samples that only leave the receiver's own surface do not occlude;
  * the earlier start one voxel along the normal shifted shadows: sun relMSE 0.0125 against
  * 0.0024 in tests/gpu/test_direct_light.py), then smoothstep.
- * Sky: `cones` fixed cosine-distributed directions around the normal, each a wide cone (k = 2)
- * over 3 m; E_sky = pi * sky * mean visibility.
+ * cone_visibility also serves the direct pass's sky light (direct_light.comp.glsl: wide cones,
+ * k = 2, over 3 m).
  */
 #define PI 3.14159265358979
 #define SHADOW_STEPS 96
+#define SDF_BAND_VOXELS 4.0   /* lumen_addon/sdf.py BAND_VOXELS */
 #define THIN_VOXELS 0.5   /* occluders count half a voxel thicker: walls thinner than a voxel block */
 
 vec4 light_texel(int i, int t)
@@ -21,7 +22,10 @@ vec4 light_texel(int i, int t)
   return texelFetch(lights, ivec2(t, i), 0);
 }
 
-float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
+/* t_shell: where the receiver's own half-voxel shell ends along dir (0 for the lights' narrow
+ * cones; the sky's wide cones measure their opening from there, so a surface that only curves
+ * away, a sphere or open ground, is not occluded by the thin-wall rule: see sky_light). */
+float cone_visibility_shell(vec3 p, vec3 n, vec3 dir, float t_max, float k, float t_shell)
 {
   float h;
   int nearest;
@@ -33,6 +37,13 @@ float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
    * ahead: a wall next to the receiver) or clears the shell, every sample counts. */
   vec3 o = p + n * (0.05 * h);
   float t = 0.25 * h;
+  /* shell mode: a receiver the SDF has slightly inside its surface (the baked field is off the
+   * polygons by a fraction of a voxel) would read that offset as an occluder at every step */
+  float lift = 0.0;
+  if (t_shell > 0.0) {
+    float hv0;
+    lift = max(-sdf_scene(o, hv0, nearest), 0.0);
+  }
   float vis = 1.0;
   bool leaving = true;
   float last = -1e30;
@@ -54,7 +65,12 @@ float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
       }
       leaving = false;
     }
-    vis = min(vis, k * (d - THIN_VOXELS * hv) / t);
+    /* shell mode: a sample farther from every surface than the SDF's band (4 voxels; the
+     * field there is clamped to the band, a lower bound) says nothing about a wide cone: k x
+     * band / t would shrink with t alone and darken open sky (a sphere lost 10% of it) */
+    if (t_shell <= 0.0 || d < (SDF_BAND_VOXELS - 0.5) * hv) {
+      vis = min(vis, k * (d + lift - THIN_VOXELS * hv) / max(t - t_shell, 0.25 * t));
+    }
     if (vis <= 0.0) {
       return 0.0;
     }
@@ -65,6 +81,11 @@ float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
   }
   vis = clamp(vis, 0.0, 1.0);
   return vis * vis * (3.0 - 2.0 * vis);
+}
+
+float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
+{
+  return cone_visibility_shell(p, n, dir, t_max, k, 0.0);
 }
 
 /* A per-pixel rotation in [0,1)^2 for the light samples (integer hash of the pixel). */
@@ -145,20 +166,3 @@ vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
   }
   return sum / float(count);
 }
-
-float sky_visibility(vec3 p, vec3 n, int cones)
-{
-  vec3 a = abs(n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
-  vec3 u = normalize(cross(n, a));
-  vec3 v = cross(n, u);
-  float sum = 0.0;
-  for (int i = 0; i < cones; i++) {
-    /* Fibonacci points on the disk, lifted to the hemisphere: cosine distributed. */
-    float r = sqrt((float(i) + 0.5) / float(cones));
-    float phi = float(i) * 2.39996323;
-    vec3 dir = normalize(u * (r * cos(phi)) + v * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - r * r)));
-    sum += cone_visibility(p, n, dir, 3.0, 2.0);
-  }
-  return cones > 0 ? sum / float(cones) : 1.0;
-}
-

@@ -2,7 +2,7 @@
  * pixel, `rays` cosine-distributed rays (a Hammersley set rotated per pixel and frame) through
  * gi_trace_lib.glsl, E = pi * mean(L): the same rays and surface cache as the probes, without
  * the probes' interpolation, filtering and SH.
- * Inputs: gbuf_position, gbuf_normal; cam_pos, sky, rays, frame, t_max.
+ * Inputs: gbuf_position, gbuf_normal; cam_pos, rays, frame, t_max.
  * Output out_image: E.rgb, w = 1 on surface pixels, -1 on the background.
  */
 #define PI 3.14159265358979
@@ -29,7 +29,7 @@ void main()
   for (int i = 0; i < rays; i++) {
     vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(rays)) + rot), n);
     float t, w;
-    sum += gi_radiance(o, dir, t_max, sky, t, w);
+    sum += gi_radiance(o, dir, t_max, t, w);
   }
   imageStore(out_image, px, vec4(PI * sum / float(rays), 1.0));
 }

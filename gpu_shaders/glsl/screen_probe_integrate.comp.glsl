@@ -7,7 +7,7 @@
  * none visible the pixel traces FALLBACK_RAYS rays itself; such pixels are flagged (w = 0) for the
  * debug view.
  * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, the mesh SDFs;
- * cam_pos, probe_tile; for the fallback rays the surface cache and global SDF, sky, frame, t_max.
+ * cam_pos, probe_tile; for the fallback rays the surface cache and global SDF, frame, t_max.
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0 fallback, -1 background.
  */
 #define FALLBACK_RAYS 16
@@ -59,7 +59,7 @@ void main()
       for (int i = 0; i < FALLBACK_RAYS; i++) {
         vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(FALLBACK_RAYS)) + rot), n);
         float t, wt;
-        sum += gi_radiance(o, dir, t_max, sky, t, wt);
+        sum += gi_radiance(o, dir, t_max, t, wt);
       }
       imageStore(out_image, px, vec4(3.14159265358979 * sum / float(FALLBACK_RAYS), 0.0));
       return;

@@ -3,7 +3,7 @@
  * gi_trace_lib.glsl (mesh SDFs near, global SDF far, the surface cache at hits, sky on a miss).
  * Directions are jittered inside their texel by ray_jitter (the same for every probe of a frame).
  * Rays start one voxel of the nearest object off the probe's surface along its normal.
- * Inputs: probe_info, probe_normal; push constants sky, probe_res, ray_jitter, t_max.
+ * Inputs: probe_info, probe_normal; push constants probe_res, ray_jitter, t_max.
  * Output out_image (probe atlas, probe (i, j) at texels [i*res, (i+1)*res) x [j*res, ...)):
  * radiance rgb, a = hit distance (t_max on a miss, -1 where there is no probe).
  */
@@ -28,6 +28,6 @@ void main()
   sdf_scene(info.xyz, h, obj);
   vec3 o = info.xyz + n * max(gi_object_voxel(max(obj, 0)), 1e-3);
   float t, w;
-  vec3 L = gi_radiance(o, dir, t_max, sky, t, w);
+  vec3 L = gi_radiance(o, dir, t_max, t, w);
   imageStore(out_image, tx, vec4(L, t));
 }

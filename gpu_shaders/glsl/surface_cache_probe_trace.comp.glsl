@@ -3,7 +3,7 @@
  * Each ray goes through gi_trace_lib.glsl from one voxel off the probe's surface and returns the
  * surface cache's final light at its hit (last frame's: one more bounce) or the sky.
  * Runs over this frame's tiles (sc_pages): thread (x, y) is ray texel (x % 32, y) of tile x / 32.
- * Inputs: texel_card, card tables and layers, sc_final, sc_pages; sky, frame, t_max.
+ * Inputs: texel_card, card tables and layers, sc_final, sc_pages; frame, t_max.
  * Outputs: out_image (rays): radiance rgb, a = 1 (0: no probe); probe_out (one texel per probe,
  * written by ray 0): world normal xyz, w = card row + 1 (0: no probe); probe_pos_out: world position
  * xyz, w = the object's voxel.
@@ -38,6 +38,6 @@ void main()
   }
   vec3 dir = scp_dir(probe, frame, k, n);
   float t, w;
-  vec3 L = gi_radiance(p + n * gi_object_voxel(obj), dir, t_max, sky, t, w);
+  vec3 L = gi_radiance(p + n * gi_object_voxel(obj), dir, t_max, t, w);
   imageStore(out_image, tx, vec4(L, w > 0.0 ? 1.0 : 0.5));
 }

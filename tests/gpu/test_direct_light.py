@@ -2,7 +2,9 @@
 Cycles' Diffuse Direct pass (CPU), one light type at a time, in one bpy subprocess.
 
 Scene: a 4 x 4 x 0.1 m floor and a rotated 1 m box, white-ish Principled materials with no
-specular layer (Specular IOR Level 0: a pure Lambert BSDF), black world, 64 x 64 pixels. Cycles:
+specular layer (Specular IOR Level 0: a pure Lambert BSDF), black world, 64 x 64 pixels; then
+the same with no light and Blender's bundled courtyard.exr as the world (GI Off: the sky light of
+the direct pass, SDF-occluded, against Cycles with no bounces). Cycles:
 128 samples, no denoiser, no adaptive sampling, pixel filter 0.01 px (point samples at the pixel
 centres, like our G-buffer). Both engines write multilayer EXRs; the DiffDir passes are compared
 with relMSE = mean((ours - ref)^2 / (ref^2 + 0.01)) over all pixels and channels.
@@ -21,7 +23,7 @@ from blender_runner import run_python  # noqa: E402
 from exr_passes import read_pass  # noqa: E402
 
 SIZE = 64
-LIGHTS = ("SUN", "POINT", "SPOT", "AREA")
+LIGHTS = ("SUN", "POINT", "SPOT", "AREA", "HDRI")
 LIMIT = 0.05
 # Measured relMSE above the limit: {light type: reason} (xfail, non-strict).
 KNOWN_MISSES = {}
@@ -62,7 +64,24 @@ bake_seconds = time.perf_counter() - t
 def aim(obj, target=(0.0, 0.0, 0.0)):
     obj.rotation_euler = (mathutils.Vector(target) - obj.location).to_track_quat("-Z", "Y").to_euler()
 
+def hdri_world(name):
+    # Blender's bundled HDRI as the world (Environment Texture -> Background): no light object
+    import os
+    folder = bpy.utils.system_resource('DATAFILES', path="studiolights/world")
+    w = bpy.data.worlds.new(name)
+    if w.node_tree is None:
+        w.use_nodes = True
+    env = w.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(os.path.join(folder, name))
+    w.node_tree.links.new(env.outputs["Color"], w.node_tree.nodes["Background"].inputs["Color"])
+    return w
+
 def make_light(kind):
+    if kind == "HDRI":
+        black = scene.world
+        scene.world = hdri_world("courtyard.exr")
+        scene.lumen.gi_quality = "OFF"       # the sky light is then Diffuse Direct, as in Cycles
+        return black
     data = bpy.data.lights.new(kind, kind)
     obj = link(bpy.data.objects.new(kind, data))
     if kind == "SUN":
@@ -116,7 +135,10 @@ for kind in {LIGHTS!r}:
             notes.append(dict(kind=kind, passes=R["passes_written"], gbuffer=R["gbuffer_seconds"],
                               direct=R["direct_seconds"], shade=R["shade_seconds"],
                               triangles=R["triangles"]))
-    bpy.data.objects.remove(light)
+    if kind == "HDRI":
+        scene.world = light
+    else:
+        bpy.data.objects.remove(light)
 emit(times=times, bake_seconds=bake_seconds, engine=notes)
 """
 

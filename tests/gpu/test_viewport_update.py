@@ -106,7 +106,7 @@ def test_moves_reupload_only_what_changed(tmp_path):
     assert run.returncode == 0, run.explain()
     steps = run.result["steps"]
     print(steps, run.result["memory"])
-    assert steps["first"]["changes"] == ["atlas", "cards", "indirection", "lights", "objects"]
+    assert steps["first"]["changes"] == ["atlas", "cards", "indirection", "lights", "objects", "sky"]
     assert steps["again"]["changes"] == []
     assert steps["moved_object"]["changes"] == ["objects"]
     assert steps["moved_object"]["uploads"]["atlas"] == 1
