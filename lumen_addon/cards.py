@@ -71,12 +71,20 @@ class MeshCards:
 
 
 class _Surface:
-    """The mesh, its Embree scene and area-weighted surface samples for placement and coverage."""
+    """The mesh, its Embree scene and area-weighted surface samples for placement and coverage.
+
+    Everything here is in a frame centred on the mesh bounds (`offset` in mesh space): Embree is
+    float32, and a mesh 1e7 m from its origin got no cards at all (1e4 m: twice the cards, its own
+    faces hiding its samples). finish() moves the cards back to mesh space.
+    """
 
     def __init__(self, v, t, samples, seed=0, two_sided=False):
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
 
+        used = v[np.unique(t)]
+        self.offset = 0.5 * (used.min(axis=0) + used.max(axis=0))
+        v = v - self.offset
         self.v, self.t = v, t
         self.scene = rtcore_scene.EmbreeScene()
         TriangleMesh(self.scene, np.ascontiguousarray(v, np.float32), np.ascontiguousarray(t, np.int32))
@@ -87,7 +95,7 @@ class _Surface:
         self.area = area
         self.two_sided = bool(two_sided)
         self.p, self.n = self.sample(samples, seed)
-        self.bmin, self.bmax = v.min(axis=0), v.max(axis=0)
+        self.bmin, self.bmax = used.min(axis=0) - self.offset, used.max(axis=0) - self.offset
         self.eps = 1e-5 * float(np.max(self.bmax - self.bmin) or 1.0)
 
     def sample(self, count: int, seed: int):
@@ -320,9 +328,16 @@ def bake_mesh_cards(vertices, triangles, *, texel_density: float = 20.0, normals
 
 
 def finish(surface: _Surface, cards, warnings) -> MeshCards:
-    """Drop cards that captured nothing (a bounds card of a room seen from inside), measure."""
+    """Drop cards that captured nothing (a bounds card of a room seen from inside), measure,
+    and move the cards from the surface's centred frame to mesh space."""
     cards = [c for c in cards if c.opacity.any()]
-    return MeshCards(cards, texel_coverage(surface, cards), warnings)
+    coverage = texel_coverage(surface, cards)
+    for c in cards:
+        shift = float(AXES[c.axis] @ surface.offset)
+        c.rect_min = c.rect_min + surface.offset[list(PLANE[c.axis])]
+        c.rect_max = c.rect_max + surface.offset[list(PLANE[c.axis])]
+        c.near, c.far = c.near + shift, c.far + shift
+    return MeshCards(cards, coverage, warnings)
 
 
 def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=16384, seed=0,

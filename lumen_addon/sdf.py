@@ -205,10 +205,13 @@ def bake_mesh_sdf(vertices, triangles, *, voxel_density: float = 20.0, resolutio
     used = v[np.unique(t)]
     bmin, bmax = used.min(axis=0), used.max(axis=0)
     h0, res0, requested = plan_resolution(bmax - bmin, voxel_density, resolution_scale, max_resolution)
-    origin = 0.5 * (bmin + bmax) - 0.5 * np.array(res0) * h0
+    centre = 0.5 * (bmin + bmax)
+    origin = centre - 0.5 * np.array(res0) * h0
     sdf = MeshSDF(origin=origin, bounds_min=bmin, bounds_max=bmax, two_sided=bool(two_sided),
                   requested_resolution=requested, dropped_degenerate=mesh.dropped_degenerate)
-    signer = None if two_sided else SignTester(v, t, inside_fraction=inside_fraction)
+    # Rays in a frame centred on the mesh (float32 in Embree); distances are already relative
+    # to the grid origin (TrianglePairs), so a mesh far from its own origin bakes as at home.
+    signer = None if two_sided else SignTester(v, t, inside_fraction=inside_fraction, origin=centre)
     pairs = TrianglePairs(v, t, origin)
     tri = v[t] - origin
     holes = boundary_loops(v, t) if signer is not None else None

@@ -42,18 +42,25 @@ STAGES = (8, 24, 32)   # rays per stage: 8, then up to 32, then up to 64 in all
 
 
 class SignTester:
-    """Embree scene of one mesh, reused for every query of a bake."""
+    """Embree scene of one mesh, reused for every query of a bake.
+
+    Embree works in float32, so vertices and query points are first taken relative to `origin`
+    (float64; the bake passes the centre of the mesh bounds): 1e7 m from the origin a float32 step
+    is 1 m, and a mesh there lost its signs.
+    """
 
     def __init__(self, vertices: np.ndarray, triangles: np.ndarray, *,
-                 inside_fraction: float = INSIDE_FRACTION, seed: int = 0):
+                 inside_fraction: float = INSIDE_FRACTION, seed: int = 0, origin=None):
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
 
+        self.origin = np.zeros(3) if origin is None else np.asarray(origin, np.float64)
+        local = np.asarray(vertices, np.float64) - self.origin
         self.scene = rtcore_scene.EmbreeScene()
         # Indexed geometry: half the BVH build time of a triangle soup (measured on 100k faces).
-        TriangleMesh(self.scene, np.ascontiguousarray(vertices, dtype=np.float32),
+        TriangleMesh(self.scene, np.ascontiguousarray(local, dtype=np.float32),
                      np.ascontiguousarray(triangles, dtype=np.int32))
-        tri = vertices[triangles]
+        tri = local[triangles]
         self.normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float32)
         self.inside_fraction = float(inside_fraction)
         # Stratified directions, each stage its own Fibonacci set, randomly rotated per pool entry.
@@ -62,7 +69,8 @@ class SignTester:
                            for k in STAGES]
 
     def back_face_hits(self, points: np.ndarray, stage: int, pool: np.ndarray) -> np.ndarray:
-        """Rays of one stage per point (direction set `pool` per point): back-face hits each."""
+        """Rays of one stage per point (relative to self.origin; direction set `pool` per point):
+        back-face hits each."""
         dirs = self.stage_dirs[stage][pool]                      # (n, k, 3)
         n, k = dirs.shape[:2]
         d = dirs.reshape(-1, 3)
@@ -79,7 +87,7 @@ class SignTester:
         Staged: 8 rays decide when they agree (closed meshes: always); otherwise more rays
         until the fraction is clearly on one side of the threshold or 64 rays were cast.
         """
-        points = np.asarray(points, np.float64)
+        points = np.asarray(points, np.float64) - self.origin
         thr = self.inside_fraction
 
         def run(sl):
