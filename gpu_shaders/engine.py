@@ -81,7 +81,7 @@ def scene_bake(scene):
     bake = bake_op.LAST_BAKES.get(scene.name)
     if bake is not None:
         return bake, "memory"
-    folder = bake_op.resolve_folder(scene.lumen.cache_dir)
+    folder = bake_op.scene_cache_folder(scene)
     try:
         mtime = folder.stat().st_mtime_ns if folder.exists() else None
         hit = _DISK_BAKES.get(str(folder))

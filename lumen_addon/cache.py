@@ -56,6 +56,27 @@ class CacheError(Exception):
     """A cache could not be written or read; the message names the file."""
 
 
+SCENE_TOKEN = "{scene}"     # in a cache folder setting: the scene's name, as folder_name() spells it
+_WINDOWS_DEVICES = {"CON", "PRN", "AUX", "NUL", *(f"COM{i}" for i in range(10)),
+                    *(f"LPT{i}" for i in range(10))}
+
+
+def folder_name(name: str) -> str:
+    """`name` (a scene's) as one folder name that means the same on every system: ASCII letters,
+    digits, '.', '-' and '_' are kept, anything else becomes '_'. A name that had to change, or
+    that a file system would read otherwise (empty, starting or ending with '.', a Windows device
+    name such as CON, which also gets a leading '_'), gets '-' and 8 hex digits of its SHA-1, so
+    two scenes never share one folder."""
+    def device(n):
+        return n.split(".")[0].upper() in _WINDOWS_DEVICES
+
+    safe = re.sub(r"[^A-Za-z0-9._-]", "_", name)[:64]
+    if safe != name or not safe or safe.startswith(".") or safe.endswith(".") or device(safe):
+        safe = safe.strip(".")
+        digest = hashlib.sha1(name.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+        safe = f"{'_' if device(safe) else ''}{safe}-{digest}"
+    return safe
+
 
 def write_cache(folder, bake: SceneBake) -> Path:
     """Write `bake` into `folder` (created if needed) atomically; returns the manifest path."""

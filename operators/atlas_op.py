@@ -10,7 +10,7 @@ import json
 import bpy
 
 from ..lumen_addon.cache import MANIFEST
-from .bake_op import resolve_folder
+from .bake_op import scene_cache_folder
 
 IMAGE_PREFIX = "Lumen Atlas "
 DATA_LAYERS = {"normal", "depth", "opacity"}
@@ -78,7 +78,7 @@ class LUMEN_OT_open_atlas(bpy.types.Operator):
             return {'CANCELLED'}
 
     def _execute(self, context):
-        folder = resolve_folder(context.scene.lumen.cache_dir)
+        folder = scene_cache_folder(context.scene)
         try:
             size, layers = atlas_layers(folder)
         except ValueError as exc:

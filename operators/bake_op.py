@@ -16,9 +16,9 @@ from pathlib import Path
 import bpy
 
 from ..lumen_addon.bake import BakeCancelled, BakeSettings, SceneBakeError, bake_scene
-from ..lumen_addon.cache import CacheError, read_cache, write_cache
+from ..lumen_addon.cache import SCENE_TOKEN, CacheError, folder_name, read_cache, write_cache
 from .extract import extract_scene
-from .properties import INT_MAX
+from .properties import DEFAULT_CACHE_DIR, INT_MAX
 
 # Last successful bake per scene name: reused by the next bake (unchanged meshes are not baked
 # again) and written by `lumen.export_cache`. Kept in memory only; the cache folder is the record.
@@ -54,6 +54,15 @@ def resolve_folder(path: str, default_name: str = "lumen_cache") -> Path:
         rel = raw[2:].strip("/\\") or default_name
         return Path(tempfile.gettempdir()) / "lumen_gi" / rel
     return Path(bpy.path.abspath(raw))
+
+
+def scene_cache_folder(scene) -> Path:
+    """The scene's cache folder: its Cache Folder setting (empty: the default
+    //lumen_cache/{scene}) with {scene} standing for the scene's name made safe for a folder,
+    resolved as resolve_folder does (an unsaved file's // goes under the system temp folder).
+    A path without {scene} is the user's and is kept as it is."""
+    raw = (scene.lumen.cache_dir or "").strip() or DEFAULT_CACHE_DIR
+    return resolve_folder(raw.replace(SCENE_TOKEN, folder_name(scene.name)))
 
 
 def human_bytes(n: int) -> str:
@@ -95,7 +104,7 @@ def previous_bake(scene):
     bake = LAST_BAKES.get(scene.name)
     if bake is None:
         try:
-            bake = read_cache(resolve_folder(scene.lumen.cache_dir))
+            bake = read_cache(scene_cache_folder(scene))
         except Exception:
             bake = None
     return bake
@@ -180,7 +189,7 @@ class LUMEN_OT_bake(bpy.types.Operator):
     def _finish(self, scene, bake, warnings=()):
         """Write the cache, then record stats: a bake that cannot be written changes nothing."""
         try:
-            folder = resolve_folder(scene.lumen.cache_dir)
+            folder = scene_cache_folder(scene)
             write_cache(folder, bake)
         except Exception as exc:
             return self._fail(scene, exc)

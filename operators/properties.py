@@ -10,6 +10,8 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, P
 from ..lumen_addon.sdf import DEFAULT_MAX_RESOLUTION, HARD_MAX_RESOLUTION
 
 INT_MAX = 2 ** 31 - 1   # IntProperty is 32-bit; stats beyond it are clamped for display
+# One cache folder per scene: baking one scene of a .blend never replaces another scene's cache.
+DEFAULT_CACHE_DIR = "//lumen_cache/{scene}"
 
 
 GI_QUALITY_ITEMS = (
@@ -36,8 +38,10 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                                           "down (with a warning) when they would need more",
         default=2048 * 2048, min=4096)
     cache_dir: StringProperty(
-        name="Cache Folder", description="Where the bake is written (relative to the .blend file)",
-        default="//lumen_cache", subtype='DIR_PATH')
+        name="Cache Folder",
+        description="Where the bake is written. // is the .blend file's folder and {scene} this "
+                    "scene's name, so by default each scene of the file keeps its own cache",
+        default=DEFAULT_CACHE_DIR, subtype='DIR_PATH')
 
     last_objects: IntProperty(name="Objects", description="Objects in the last bake", min=0)
     last_unique_meshes: IntProperty(name="Unique Meshes",

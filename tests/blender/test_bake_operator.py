@@ -145,10 +145,11 @@ def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tm
 def test_relative_cache_dir_goes_to_temp_when_unsaved_and_next_to_saved_blend(blender, tmp_path):
     res = blender(f"""
         import os, tempfile
-        scene = empty_scene()             # cache_dir stays "//lumen_cache"
+        scene = empty_scene()             # cache_dir stays "//lumen_cache/{{scene}}"
         cube("Box")
         first = bake()
-        temp_manifest = os.path.join(tempfile.gettempdir(), "lumen_gi", "lumen_cache", "manifest.json")
+        temp_manifest = os.path.join(tempfile.gettempdir(), "lumen_gi", "lumen_cache", "Scene",
+                                     "manifest.json")
         bpy.ops.wm.save_as_mainfile(filepath={str(tmp_path / "scene.blend")!r})
         second = bake()
         emit(first=first, second=second, temp=os.path.isfile(temp_manifest),
@@ -157,7 +158,7 @@ def test_relative_cache_dir_goes_to_temp_when_unsaved_and_next_to_saved_blend(bl
     r = res.result
     assert r["first"] == [["FINISHED"], None] and r["second"] == [["FINISHED"], None]
     assert r["temp"] and r["temp_dir"] == str(tmp_path / "tmp")
-    assert (tmp_path / "lumen_cache" / "manifest.json").is_file()
+    assert (tmp_path / "lumen_cache" / "Scene" / "manifest.json").is_file()
 
 
 def test_worker_job_bakes_and_cancels_without_bpy(blender):
