@@ -17,11 +17,11 @@ import numpy as np
 from . import __version__
 from . import cards as cardlib
 from .atlas import Atlas, build_atlas
-from .geometry import MeshError, clean_mesh
+from .geometry import MeshError, clean_mesh, orient_triangles
 from .sdf import DEFAULT_MAX_RESOLUTION, BakeCancelled, MeshSDF, bake_mesh_sdf, plan_resolution
 from .sign import INSIDE_FRACTION
 
-ALGORITHM_VERSION = 3   # bump when a change makes old bakes differ from new ones
+ALGORITHM_VERSION = 4   # bump when a change makes old bakes differ from new ones
 SDF_SHARE = 0.7         # of the progress bar; the cards take the rest
 
 
@@ -163,12 +163,22 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         ckey = cards_hash(obj, key, settings, digests)
         instances.append(Instance(obj.name, key, m, ckey))
         todo.setdefault(key, obj)
-        card_todo.setdefault(ckey, obj)
+        card_todo.setdefault(ckey, (obj, key))
     if problems:
         raise SceneBakeError(problems)
     for name, value in (("texel density", settings.texel_density), ("texel budget", settings.texel_budget)):
         if not (np.isfinite(value) and value > 0):
             raise SceneBakeError([("scene", f"{name} must be a positive number, got {value!r}")])
+
+    # Winding fixes (geometry.orient_triangles), once per mesh for its SDF and its cards alike.
+    orientations = {}
+
+    def orientation(key, obj):
+        if obj.two_sided:
+            return None
+        if key not in orientations:
+            orientations[key] = orient_triangles(obj.vertices, obj.triangles)
+        return orientations[key]
 
     meshes, reused = {}, 0
     old = previous.meshes if previous is not None else {}
@@ -188,7 +198,9 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         sdf = bake_mesh_sdf(obj.vertices, obj.triangles, voxel_density=settings.voxel_density,
                             resolution_scale=obj.resolution_scale, two_sided=obj.two_sided,
                             max_resolution=settings.max_resolution,
-                            inside_fraction=settings.inside_fraction, progress=sub)
+                            inside_fraction=settings.inside_fraction, progress=sub,
+                            orientation=orientation(key, obj))
+        warnings.extend((obj.name, note) for note in sdf.orientation_notes)
         if sdf.clamped:
             warnings.append((obj.name, f"resolution {'x'.join(map(str, sdf.requested_resolution))} "
                              f"clamped to {'x'.join(map(str, sdf.mips[0].resolution))} voxels"))
@@ -197,7 +209,8 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         meshes[key] = sdf
         done += span
     cards = _bake_cards(card_todo, settings, previous, warnings,
-                        lambda f, name: progress(done + (1.0 - done) * f, name) if progress else None)
+                        lambda f, name: progress(done + (1.0 - done) * f, name) if progress else None,
+                        orientation)
     atlas = build_atlas(cards)
     if progress:
         progress(1.0, "")
@@ -205,18 +218,20 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
                      cards, atlas)
 
 
-def _bake_cards(todo: dict, settings: BakeSettings, previous, warnings, progress) -> dict:
-    """Cards of every unique (mesh, materials, scale): place all, fit the texel budget, capture."""
+def _bake_cards(todo: dict, settings: BakeSettings, previous, warnings, progress, orientation) -> dict:
+    """Cards of every unique (mesh, materials, scale): place all, fit the texel budget, capture.
+    todo: cards hash -> (object, SDF hash); orientation(SDF hash, object): its winding fixes."""
     old = previous.cards if previous is not None else {}
     out = {k: old[k] for k in todo if k in old}
     new = {}
-    for key, obj in todo.items():
+    for key, (obj, mesh_key) in todo.items():
         if key in out:
             continue
         progress(0.3 * len(new) / max(len(todo), 1), obj.name)
         surface, attrs, notes = cardlib.prepare(obj.vertices, obj.triangles, obj.normals, obj.uvs,
                                                 obj.material_ids, obj.materials,
-                                                two_sided=obj.two_sided)
+                                                two_sided=obj.two_sided,
+                                                orientation=orientation(mesh_key, obj))
         warnings.extend((obj.name, n) for n in notes)
         placed = cardlib.place_cards(surface, max_cards=settings.max_cards)
         new[key] = (obj, surface, attrs, placed, settings.texel_density * world_scale(obj.matrix_world))

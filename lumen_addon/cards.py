@@ -341,9 +341,13 @@ def finish(surface: _Surface, cards, warnings) -> MeshCards:
 
 
 def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=16384, seed=0,
-            two_sided=False):
-    """Validate the mesh and its attributes; drop what is unusable with a warning."""
-    mesh = clean_mesh(vertices, triangles)
+            two_sided=False, orientation=None):
+    """Validate the mesh and its attributes; drop what is unusable with a warning.
+
+    Inside-out faces are flipped as for the SDF (clean_mesh; orientation: orient_triangles of
+    these arrays when the caller has it), so cards capture the outside; corner attributes follow.
+    """
+    mesh = clean_mesh(vertices, triangles, orient=not two_sided, orientation=orientation)
     t = np.asarray(triangles)
     keep = mesh.kept if len(mesh.kept) != len(t) else None
     warnings = []
@@ -360,6 +364,21 @@ def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=
 
     normals = rows(normals, (3, 3), "normals")
     uvs = rows(uvs, (3, 2), "UVs")
+    flip = mesh.flipped
+    if flip.any():
+        # Corners 1 and 2 swap with the winding; a flipped face's corner normals pointed inwards
+        # with it (Blender derives them from the winding), so those facing away are turned.
+        if uvs is not None:
+            uvs = uvs.copy()
+            uvs[flip] = uvs[flip][:, [0, 2, 1]]
+        if normals is not None:
+            normals = np.asarray(normals, np.float64).copy()
+            nf = normals[flip][:, [0, 2, 1]]
+            tri = mesh.vertices[mesh.triangles[flip]]
+            face = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            away = np.einsum("tkj,tj->tk", nf, face) < 0
+            nf[away] = -nf[away]
+            normals[flip] = nf
     material_ids = rows(material_ids, (), "material indices")
     if material_ids is not None:
         material_ids = np.clip(material_ids.astype(np.int64), 0, len(mats) - 1)

@@ -14,23 +14,66 @@ class MeshError(ValueError):
     """The mesh cannot be baked; the message says why (the caller adds the object's name)."""
 
 
+CLOSED, OPEN, NON_ORIENTABLE = 0, 1, 2   # Orientation.part
+
+
+@dataclass(frozen=True)
+class Orientation:
+    """Which triangles orient_triangles reversed, and the kind of part each belongs to."""
+
+    flip: np.ndarray           # bool per triangle: its winding was reversed
+    part: np.ndarray           # int8 per triangle: CLOSED, OPEN or NON_ORIENTABLE
+
+    def subset(self, index) -> "Orientation":
+        return Orientation(self.flip[index], self.part[index])
+
+    def notes(self) -> list:
+        """Warnings for the user (the caller names the object)."""
+        out = []
+        inside_out = int((self.flip & (self.part == CLOSED)).sum())
+        if inside_out:
+            out.append(f"{inside_out} faces were inside-out and were flipped (a room meant to be "
+                       f"seen from inside bakes as Two Sided)")
+        mismatched = int((self.flip & (self.part == OPEN)).sum())
+        if mismatched:
+            out.append(f"{mismatched} faces of an open part faced against the rest of it and "
+                       f"were flipped")
+        lost = int((self.part == NON_ORIENTABLE).sum())
+        if lost:
+            out.append(f"{lost} faces belong to a part whose faces cannot all face one way "
+                       f"(non-orientable): left as they are, its inside may be wrong")
+        return out
+
+
 @dataclass(frozen=True)
 class CleanMesh:
-    """A validated triangle mesh: float64 vertices (V,3), int64 triangles (T,3), no degenerate ones."""
+    """A validated triangle mesh: float64 vertices (V,3), int64 triangles (T,3), no degenerate ones,
+    consistently wound unless orientation was off (see orient_triangles)."""
 
     vertices: np.ndarray
     triangles: np.ndarray
     dropped_degenerate: int
     kept: np.ndarray           # indices of the input triangles that were kept
     ignored_vertices: int = 0  # loose vertices (no face uses them) that were NaN or infinite
+    orientation: Orientation = None   # flip is per kept triangle; None when orient=False
+
+    @property
+    def flipped(self) -> np.ndarray:
+        """bool per kept triangle: reversed (corners 1 and 2 swapped) relative to the input."""
+        if self.orientation is None:
+            return np.zeros(len(self.triangles), bool)
+        return self.orientation.flip
 
 
-def clean_mesh(vertices, triangles) -> CleanMesh:
-    """Validate a triangle soup and drop zero-area triangles.
+def clean_mesh(vertices, triangles, orient: bool = True, orientation: Orientation = None) -> CleanMesh:
+    """Validate a triangle soup, drop zero-area triangles and (orient) fix the winding.
 
     Raises MeshError for: wrong shapes, no triangles, indices out of range, non-finite vertices
     used by a triangle, or a mesh whose every triangle is degenerate. Non-finite vertices that
-    no face uses are ignored (counted in ignored_vertices).
+    no face uses are ignored (counted in ignored_vertices). A reversed triangle has its corners
+    1 and 2 swapped; corner attributes must follow (CleanMesh.flipped). orient=False for
+    two-sided meshes, which have no inside. orientation: orient_triangles(vertices, triangles)
+    computed earlier, reused (the pass costs about 1 s per million faces).
     """
     v = np.asarray(vertices, dtype=np.float64)
     t = np.asarray(triangles)
@@ -62,7 +105,17 @@ def clean_mesh(vertices, triangles) -> CleanMesh:
     keep = area2 > (extent * extent * 1e-12) ** 2
     if not keep.any():
         raise MeshError("every face is degenerate (zero area)")
-    return CleanMesh(v, t[keep], int((~keep).sum()), np.flatnonzero(keep), ignored)
+    kept = np.flatnonzero(keep)
+    if not orient:
+        return CleanMesh(v, t[keep], int((~keep).sum()), kept, ignored)
+    # Orient with the zero-area faces too: they can be what closes a surface.
+    o = orientation if orientation is not None else orient_triangles(v, t)
+    if len(o.flip) != len(t):
+        raise ValueError("orientation belongs to another mesh")
+    o = o.subset(kept)
+    tk = t[kept]
+    tk[o.flip] = tk[o.flip][:, [0, 2, 1]]
+    return CleanMesh(v, tk, int((~keep).sum()), kept, ignored, o)
 
 
 class TrianglePairs:
@@ -226,3 +279,240 @@ def boundary_loops(vertices: np.ndarray, triangles: np.ndarray):
     radii = np.zeros(len(n))
     np.maximum.at(radii, comp, np.linalg.norm(p - centres[comp], axis=1))
     return centres, radii
+
+
+def orient_triangles(vertices, triangles) -> Orientation:
+    """Make the faces of every part agree, and closed parts face outwards.
+
+    A part is the triangles connected through manifold edges (edges of exactly two faces); edges
+    are matched by vertex position when indices leave some unmatched, so a triangle soup (STL) or
+    a mesh split at seams is still one surface. In a part, the winding of the larger area wins
+    (union-find with parities makes the rest agree with it). Then a closed part (every edge used
+    once in each direction) with a negative signed volume faces inwards and is flipped, unless it
+    is a cavity (the nearest part around it faces outwards: a hollow object's inner wall) or a
+    room (it holds an outward-facing part: a room seen from inside with furniture), which are
+    inside-out on purpose. An empty inward-facing shell cannot be told from an inside-out object
+    and is flipped (a room seen from inside without anything in it bakes well as two-sided).
+    A part that no winding makes consistent (a Moebius strip) is left as it is.
+    """
+    v = np.asarray(vertices, np.float64)
+    t = np.asarray(triangles, np.int64)
+    flip = np.zeros(len(t), bool)
+    part = np.full(len(t), OPEN, np.int8)
+    faces = np.flatnonzero((t[:, 0] != t[:, 1]) & (t[:, 1] != t[:, 2]) & (t[:, 2] != t[:, 0]))
+    if not len(faces):
+        return Orientation(flip, part)
+    ids = t[faces]
+    a, b = ids.reshape(-1), ids[:, [1, 2, 0]].reshape(-1)        # half-edge h = face * 3 + corner
+    h1, h2, rel, loose = _match(a, b, np.arange(len(a)), len(v))
+    if len(loose):
+        # Edges not shared by index: weld their corners by position (-0.0 == 0.0) and match again,
+        # so a triangle soup (STL) or a mesh split at seams is still one surface.
+        ends = np.unique(np.concatenate([a[loose], b[loose]]))
+        key = np.ascontiguousarray(v[ends] + 0.0).view(np.dtype((np.void, 24))).ravel()
+        _, first, group = np.unique(key, return_index=True, return_inverse=True)
+        weld = np.arange(len(v))
+        weld[ends] = ends[first[group.reshape(-1)]]
+        wa, wb = weld[a[loose]], weld[b[loose]]
+        line = wa == wb                   # a zero-area face's edge between merged corners
+        m1, m2, mrel, loose = _match(wa[~line], wb[~line], loose[~line], len(v))
+        h1, h2, rel = np.concatenate([h1, m1]), np.concatenate([h2, m2]), np.concatenate([rel, mrel])
+        a, b = weld[a], weld[b]
+    fa, fb = h1 // 3, h2 // 3
+    nf = len(faces)
+    root, par = _union_parity(nf, fa, fb, rel)
+    roots, cid = np.unique(root, return_inverse=True)
+    nc = len(roots)
+    bad = np.zeros(nc, bool)                        # no winding makes these parts consistent
+    bad[cid[fa[(par[fa] ^ par[fb]) != rel]]] = True
+
+    tri = v[t[faces]]
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    cross = np.stack([e1[:, 1] * e2[:, 2] - e1[:, 2] * e2[:, 1], e1[:, 2] * e2[:, 0] - e1[:, 0] * e2[:, 2],
+                      e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]], axis=1)
+    area = np.sqrt(np.einsum("ij,ij->i", cross, cross))
+    # The winding of the larger area of each part wins.
+    turn = np.bincount(cid, area * par, nc) > 0.5 * np.bincount(cid, area, nc)
+    par = par ^ turn[cid]
+
+    # Closed: every edge of the part is used equally often in both directions by the part's faces
+    # (edges of two faces are, once the part agrees; only the others need counting).
+    closed = ~bad
+    if len(loose):
+        h_face = loose // 3
+        la, lb = a[loose], b[loose]
+        step = np.where((la < lb) ^ par[h_face].astype(bool), 1, -1)
+        edge = np.minimum(la, lb) * np.int64(len(v)) + np.maximum(la, lb)
+        _, group = np.unique(np.stack([edge, cid[h_face]]), axis=1, return_inverse=True)
+        unbalanced = np.bincount(group.reshape(-1), step) != 0
+        closed[np.unique(cid[h_face][unbalanced[group.reshape(-1)]])] = False
+
+    # Signed volume of each closed part about its own centroid (float64: exact far from the origin).
+    count = np.bincount(cid, minlength=nc)
+    centre = np.stack([np.bincount(cid, tri[:, :, k].mean(axis=1), nc) for k in range(3)], 1)
+    centre /= np.maximum(count, 1)[:, None]
+    det = np.einsum("ij,ij->i", tri[:, 0] - centre[cid], cross)    # = det(a, b, c) about the centre
+    volume = np.bincount(cid, np.where(par, -det, det), nc) / 6.0
+    # A part too flat for its volume to have a sign (a closed zero-thickness sheet) stays open.
+    closed &= np.abs(volume) > 1e-9 * np.bincount(cid, area, nc) ** 1.5
+    inward = closed & (volume < 0)
+    if inward.any():
+        inward &= ~_on_purpose(tri, par, cid, closed, volume, area)
+    par = par ^ inward[cid]
+
+    kind = np.where(bad, NON_ORIENTABLE, np.where(closed, CLOSED, OPEN)).astype(np.int8)
+    part[faces] = kind[cid]
+    flip[faces] = par.astype(bool) & ~bad[cid]
+    return Orientation(flip, part)
+
+
+def _match(a, b, h, nverts):
+    """Pair half-edges (a -> b, ids h) of the same edge: (h1, h2, same direction) for every edge
+    of exactly two half-edges, and the ids of the rest (sorted)."""
+    key = np.minimum(a, b) * np.int64(nverts) + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    start = np.r_[True, ks[1:] != ks[:-1]]
+    group = np.cumsum(start) - 1
+    count = np.bincount(group)[group]
+    i = np.flatnonzero(start & (count == 2))
+    o1, o2 = order[i], order[i + 1]
+    same = (a[o1] < b[o1]) == (a[o2] < b[o2])
+    return h[o1], h[o2], same.astype(np.int64), np.sort(h[order[count != 2]])
+
+
+def _union_parity(n, a, b, rel):
+    """Connected components of n nodes joined by edges (a, b), with a parity per node such that
+    parity[a] ^ parity[b] == rel wherever that is possible.
+
+    Vectorised union-find: each round hooks every tree root onto a smaller root it shares an edge
+    with, then pointer jumping flattens the trees; edges inside one tree drop out, so rounds get
+    cheaper. A node's code is parent * 2 + parity-to-parent, written in one store, so parent and
+    parity of a hook always come from the same edge. Returns (root per node: the smallest node of
+    its component, parity per node relative to that root).
+    """
+    code = np.arange(n, dtype=np.int64) * 2
+    a, b, rel = np.asarray(a, np.int64), np.asarray(b, np.int64), np.asarray(rel, np.int64)
+    while True:
+        while True:     # pointer jumping: parent := grandparent, parities composed
+            up = code[code >> 1]
+            new = (up & ~1) | ((code ^ up) & 1)
+            if np.array_equal(new, code):
+                break
+            code = new
+        ca, cb = code[a], code[b]
+        live = (ca >> 1) != (cb >> 1)
+        if not live.any():
+            return code >> 1, code & 1
+        a, b, rel, ca, cb = a[live], b[live], rel[live], ca[live], cb[live]
+        hi, lo = np.maximum(ca >> 1, cb >> 1), np.minimum(ca >> 1, cb >> 1)
+        code[hi] = lo * 2 + ((ca ^ cb ^ rel) & 1)
+
+
+# Three directions for the crossing count (no axis, no diagonal: rays rarely graze a grid of edges).
+_CROSSING_DIRS = np.array([[0.5773, 0.6178, 0.5338], [-0.7071, 0.2588, 0.6583],
+                           [0.1736, -0.9063, 0.3853]])
+_CROSSING_DIRS /= np.linalg.norm(_CROSSING_DIRS, axis=1, keepdims=True)
+
+
+def _on_purpose(tri, par, cid, closed, volume, area):
+    """Closed parts facing inwards that are meant to: a cavity (the nearest closed part around it
+    faces outwards) or a room (it holds an outward-facing closed part). Parts are decided
+    outermost first, since flipping a part changes what the parts inside it are."""
+    nc = len(volume)
+    inward = closed & (volume < 0)
+    order = np.argsort(cid, kind="stable")
+    firsts = np.flatnonzero(np.r_[True, cid[order][1:] != cid[order][:-1]])
+    lo = np.minimum.reduceat(tri.min(axis=1)[order], firsts)
+    hi = np.maximum.reduceat(tri.max(axis=1)[order], firsts)
+    # Candidate (inner, outer) pairs: bounds inside bounds, one of the two facing inwards.
+    inner, outer = [], []
+    shut, turned = np.flatnonzero(closed), np.flatnonzero(inward)
+    step = max(1, 4_000_000 // len(shut))                 # bounded memory
+    for k in range(0, len(turned), step):
+        b = turned[k:k + step]
+        for i_of, o_of, box_in, box_out in ((shut, b, shut, b), (b, shut, b, shut)):
+            mask = (np.all(lo[box_in][:, None] >= lo[box_out][None], axis=2)
+                    & np.all(hi[box_in][:, None] <= hi[box_out][None], axis=2))
+            ii, jj = np.nonzero(mask)
+            inner.append(i_of[ii])
+            outer.append(o_of[jj])
+    inner, outer = np.concatenate(inner), np.concatenate(outer)
+    pair = inner != outer
+    inner, outer = inner[pair], outer[pair]
+    parent = np.full(nc, -1)
+    depth = np.zeros(nc, np.int64)
+    holds = np.zeros(nc, bool)
+    if len(inner):
+        ask, scene_parts = np.unique(inner), np.unique(outer)
+        in_scene = np.flatnonzero(np.isin(cid, scene_parts))
+        wound = np.where(par[in_scene, None, None].astype(bool), tri[in_scene][:, [0, 2, 1]], tri[in_scene])
+        # A point on each asked part: the centroid of its largest face.
+        big = np.maximum.reduceat(area[order], firsts)
+        top = np.flatnonzero(area == big[cid])
+        part_of, first = np.unique(cid[top], return_index=True)
+        largest = np.full(nc, -1)
+        largest[part_of] = top[first]
+        points = tri[largest[ask]].mean(axis=1)
+        pi, around = _enclosing(wound, cid[in_scene], points, ask)
+        who = ask[pi]
+        if len(who):
+            # The nearest closed part around each asked part is the smallest one around it.
+            order = np.lexsort((np.abs(volume[around]), who))
+            first = np.r_[True, who[order][1:] != who[order][:-1]]
+            parent[who[order][first]] = around[order][first]
+            depth += np.bincount(who, minlength=nc)
+            holds[around[~inward[who]]] = True               # an outward part inside it
+    sign = np.where(inward, -1, 1)
+    keep = np.zeros(nc, bool)
+    for c in turned[np.argsort(depth[turned], kind="stable")]:      # per inward part
+        p = parent[c]
+        if (p >= 0 and sign[p] > 0) or holds[c]:
+            keep[c] = True
+        else:
+            sign[c] = 1
+    return keep
+
+
+def _enclosing(tri, tri_part, points, point_part, max_crossings=4096):
+    """Which closed parts enclose each point: (point index, part) pairs with a nonzero signed
+    crossing count (the winding number), by Embree rays cast through every surface in turn;
+    a pair counts when two of three ray directions agree, so a ray through an edge cannot
+    decide alone. tri: (F, 3, 3) corners, wound as the parts face. Works about the centre of
+    the triangles (Embree is float32)."""
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh
+
+    flat = tri.reshape(-1, 3)
+    lo, hi = flat.min(axis=0), flat.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    eps = 1e-6 * float(np.max(hi - lo))
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene, np.ascontiguousarray(flat - centre, np.float32),
+                 np.arange(len(flat), dtype=np.int32).reshape(-1, 3))
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    nparts = np.int64(tri_part.max() + 1)
+    start = np.asarray(points, np.float64) - centre
+    votes = []
+    for d in _CROSSING_DIRS:
+        keys, steps = [], []
+        dist = np.zeros(len(start))
+        live = np.arange(len(start))
+        for _ in range(max_crossings):          # one surface per pass, all rays together
+            if not live.size:
+                break
+            o = (start[live] + dist[live, None] * d).astype(np.float32)
+            hit = scene.run(o, np.repeat(d[None].astype(np.float32), len(live), 0), output=1)
+            ok = hit["primID"] >= 0
+            live, prim = live[ok], hit["primID"][ok]
+            other = tri_part[prim] != point_part[live]
+            keys.append(live[other] * nparts + tri_part[prim[other]])
+            steps.append(np.sign(normal[prim[other]] @ d).astype(np.int64))
+            dist[live] += hit["tfar"][ok].astype(np.float64) + eps
+        key = np.concatenate(keys) if keys else np.zeros(0, np.int64)
+        uniq, inv = np.unique(key, return_inverse=True)
+        votes.append(uniq[np.bincount(inv, np.concatenate(steps) if steps else None,
+                                      len(uniq)) != 0])
+    uniq, n = np.unique(np.concatenate(votes), return_counts=True)
+    uniq = uniq[n >= 2]
+    return uniq // nparts, uniq % nparts

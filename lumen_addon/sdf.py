@@ -66,6 +66,7 @@ class MeshSDF:
     requested_resolution: tuple = ()   # what density x scale asked for, before the clamp
     dropped_degenerate: int = 0
     timings: dict = field(default_factory=dict)   # seconds per bake stage, summed over mips
+    orientation_notes: list = field(default_factory=list)   # faces flipped, for the warnings
 
     @property
     def voxel_size(self) -> float:
@@ -187,7 +188,7 @@ def plan_resolution(extent, voxel_density: float, resolution_scale: float, max_r
 def bake_mesh_sdf(vertices, triangles, *, voxel_density: float = 20.0, resolution_scale: float = 1.0,
                   two_sided: bool = False, max_resolution: int = DEFAULT_MAX_RESOLUTION,
                   mip_count: int = MIP_COUNT, inside_fraction: float = INSIDE_FRACTION,
-                  progress=None) -> MeshSDF:
+                  progress=None, orientation=None) -> MeshSDF:
     """Bake a sparse brick SDF with `mip_count` mips for one mesh.
 
     vertices: (V, 3) local-space positions in metres; triangles: (T, 3) vertex indices.
@@ -197,10 +198,13 @@ def bake_mesh_sdf(vertices, triangles, *, voxel_density: float = 20.0, resolutio
     two_sided: the mesh has no inside (foliage, cards, open sheets): distance minus half a voxel
       everywhere, so a surface thinner than a voxel still blocks rays (over-occlude, never leak).
     progress: optional callable(fraction 0..1); raise BakeCancelled from it to stop.
-    Raises MeshError (with the reason) on meshes that cannot be baked.
+    orientation: geometry.orient_triangles(vertices, triangles) when the caller has it already.
+    Closed parts that are inside-out are flipped first (geometry.orient_triangles; the notes
+    are in MeshSDF.orientation_notes). Raises MeshError (with the reason) on meshes that cannot
+    be baked.
     """
     t0 = time.perf_counter()
-    mesh = clean_mesh(vertices, triangles)
+    mesh = clean_mesh(vertices, triangles, orient=not two_sided, orientation=orientation)
     v, t = mesh.vertices, mesh.triangles
     used = v[np.unique(t)]
     bmin, bmax = used.min(axis=0), used.max(axis=0)
@@ -208,7 +212,8 @@ def bake_mesh_sdf(vertices, triangles, *, voxel_density: float = 20.0, resolutio
     centre = 0.5 * (bmin + bmax)
     origin = centre - 0.5 * np.array(res0) * h0
     sdf = MeshSDF(origin=origin, bounds_min=bmin, bounds_max=bmax, two_sided=bool(two_sided),
-                  requested_resolution=requested, dropped_degenerate=mesh.dropped_degenerate)
+                  requested_resolution=requested, dropped_degenerate=mesh.dropped_degenerate,
+                  orientation_notes=mesh.orientation.notes() if mesh.orientation else [])
     # Rays in a frame centred on the mesh (float32 in Embree); distances are already relative
     # to the grid origin (TrianglePairs), so a mesh far from its own origin bakes as at home.
     signer = None if two_sided else SignTester(v, t, inside_fraction=inside_fraction, origin=centre)
