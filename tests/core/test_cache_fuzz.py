@@ -260,7 +260,7 @@ def edits_for(path: str, value, in_dict: bool):
     return out
 
 
-def manifest_edit_cases(fz: Fuzzer, rng, count=700):
+def manifest_edit_cases(fz: Fuzzer, rng, count=600):
     """`count` edits of (key pattern, edit kind) pairs, each at a random node of its pattern:
     every pattern and every kind at least once, the rest drawn at random."""
     by_pattern = {}
@@ -380,7 +380,7 @@ def manifest_text_cases(fz: Fuzzer):
 DATA_KINDS = ("sdf", "albedo", "normal", "depth", "emissive", "opacity", "albedo_srgb")
 
 
-def file_byte_cases(fz: Fuzzer, rng, flips=24, sealed_flips=16, cuts=8):
+def file_byte_cases(fz: Fuzzer, rng, flips=20, sealed_flips=16, cuts=8):
     """Truncations, appended bytes and byte flips of every data file, plain and resealed."""
     n = 0
     for kind in DATA_KINDS:
