@@ -10,7 +10,7 @@ from . import compute
 
 def composite(gbuf: dict, direct_tex, indirect_tex, sky, inv_view_proj, width: int,
               height: int) -> dict:
-    """{'combined', 'indirect'}: float32 [h, w, 4] read back. sky: sky_light.SkyLight (the
+    """{'textures': {'combined', 'indirect'}} (GPUTextures, not read back). sky: sky_light.SkyLight (the
     background pixels show its map along each camera ray)."""
     g = gbuf["textures"]
     combined = compute.texture((width, height))
@@ -30,5 +30,4 @@ def composite(gbuf: dict, direct_tex, indirect_tex, sky, inv_view_proj, width: i
     sh.image("out_image", combined)
     sh.image("indirect_out", indirect)
     compute.dispatch(sh, width, height)
-    return {"combined": compute.read(combined), "indirect": compute.read(indirect),
-            "textures": {"combined": combined, "indirect": indirect}}
+    return {"textures": {"combined": combined, "indirect": indirect}}

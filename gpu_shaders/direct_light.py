@@ -16,7 +16,7 @@ import mathutils
 import numpy as np
 
 from . import compute
-from .gbuffer import ATTACHMENTS, read_texture
+from .gbuffer import ATTACHMENTS
 from .resources import SceneResources, float_buffer, glsl
 from .sky_light import SkyLight
 
@@ -51,7 +51,8 @@ def direct_shader():
 def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLight, cam_pos,
           inv_view_proj, width: int, height: int, sky_cones: int = SKY_CONES, light_texture=None,
           light_samples: int = LIGHT_SAMPLES) -> dict:
-    """Run the pass; returns {'direct': float32 [h, w, 4], 'combined': [h, w, 4], timings}.
+    """Run the pass; returns {'textures': {'direct', 'combined'} (GPUTextures, not read back),
+    timings}.
     `light_texture`: the rows already on the GPU (SceneState.light_texture), else made here.
     sky_cones = 0 leaves the sky light out (the GI passes bring it)."""
     t0 = time.perf_counter()
@@ -79,9 +80,7 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLig
     shader.uniform_int("light_samples", int(light_samples))
     shader.uniform_int("sky_cones", int(sky_cones))
     compute.run(shader, -(-width // GROUP), -(-height // GROUP), 1)
-    out = {"direct": read_texture(direct, width, height),
-           "combined": read_texture(combined, width, height),
-           "textures": {"direct": direct, "combined": combined}}
+    out = {"textures": {"direct": direct, "combined": combined}}
     out["compile_seconds"] = t1 - t0
     out["shade_seconds"] = time.perf_counter() - t1
     return out

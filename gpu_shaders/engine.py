@@ -24,14 +24,17 @@ card; magenta where no card sees the point), SC_UPDATES (update heat of the budg
 this frame to red 8+ frames ago, magenta not yet); PROBES (the probe radiance atlas) and
 PROBE_FALLBACK (green: interpolated from probes, red: traced per pixel).
 
-GPU inputs live in a per-scene scene_state.SceneState shared by render() and the viewport: a
-frame re-uploads only what changed (the object table for moved objects, the light rows for
-changed lights, the brick atlas and indirection only when the set of baked meshes changed, the
-card textures when the cards did). F12 (`final=True`) accumulates GI from scratch
-(GISettings.render_schedule: deterministic); the viewport adds one GI iteration per redraw to
-its history and asks for redraws until the history is full. `view_update` reads
-depsgraph.updates into LAST_VIEW_UPDATE and tags a redraw; `view_draw` draws Combined through
-Blender's display transform.
+GPU inputs live in a scene_state.SceneState owned by the engine instance, as Cycles' session
+is: a viewport's engine keeps one for its lifetime, and a redraw re-uploads only what changed
+(the object table for moved objects, the light rows for changed lights, the brick atlas and
+indirection only when the set of baked meshes changed, the card textures when the cards did);
+an F12 render makes its own and frees it before it returns. F12 (`final=True`) accumulates GI
+from scratch (GISettings.render_schedule: deterministic) and reads back only the passes it
+writes; the viewport adds one GI iteration per redraw to its history, draws the Combined
+texture as it is on the GPU (no read-back) through Blender's display transform, says
+"refining n/N" until the history is full and asks for redraws until then. `view_update`
+reads depsgraph.updates into LAST_VIEW_UPDATE and tags a redraw. Compiled passes are cached
+per process and freed at exit before Blender's GPU module (gpu_shaders.free_shaders).
 
 It works headless: Blender gives a RenderEngine with bl_use_gpu_context a GPU context in
 background mode too (Mesa llvmpipe).
@@ -41,13 +44,14 @@ or else from the scene's cache folder (scene.lumen.cache_dir, resolved like the 
 """
 from __future__ import annotations
 
+import gc
 import time
 
 import bpy
 import numpy as np
 
 from . import sdf_trace
-from .scene_state import state_for
+from .scene_state import SceneState
 
 # Extra passes: (name in the render result, channels, channel ids, type).
 PASSES = (("Diffuse Direct", 3, "RGB", 'COLOR'), ("Diffuse Indirect", 3, "RGB", 'COLOR'),
@@ -69,8 +73,11 @@ MEMORY = {}
 LAST_VIEW_UPDATE = {}
 _DISK_BAKES = {}                            # folder -> (mtime, bake): the viewport reads once
 
-# What the last render did (read by tests and scripts): trace output, camera, timings, memory.
+# What the last frame did (read by tests and scripts): camera, timings, memory, notes. Its
+# images (G-buffer, passes) are read back and kept only when KEEP_IMAGES is set (tests set it)
+# or a debug view needs them: an idle add-on holds no full-size image.
 LAST_RENDER = {}
+KEEP_IMAGES = False
 
 
 def scene_bake(scene):
@@ -194,11 +201,13 @@ def mesh_matrices(depsgraph) -> dict:
             for ob in depsgraph.objects if ob.type == 'MESH'}
 
 
-def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="COMBINED",
-          final=True):
+def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
+          view="COMBINED", final=True):
     """One frame, for render() (final: F12, accumulates GI from scratch) and view_draw (one more
-    GI iteration into the history) alike: sync the scene state, run the passes.
-    Returns {pass name: float32 [h, w, C]} and fills LAST_RENDER."""
+    GI iteration into the history) alike: sync `state` (the engine instance's SceneState), run
+    the passes. Returns a Frame: the passes as GPU textures (nothing is read back here; F12
+    reads the passes it writes, the viewport draws Combined), or `shown` (numpy) for a debug
+    view. Fills LAST_RENDER with the frame's numbers (and images only when KEEP_IMAGES)."""
     from ..operators.extract import extract_scene
     from ..operators.lights import light_table
     from ..operators.world_capture import world_light
@@ -215,7 +224,6 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         objects, warnings = extract_scene(depsgraph)
         matrices = {ob.name: ob.matrix_world for ob in objects}
     t1 = time.perf_counter()
-    state = state_for(scene.name)
     changes = state.sync(bake, matrices, lights)
     if state.sky.update(sky_maps):
         changes.add("sky")
@@ -238,7 +246,7 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         MEMORY[scene.name] = state.stats()
         LAST_RENDER["gpu_bytes"] = MEMORY[scene.name]
         LAST_RENDER["shown"] = img
-        return {"Combined": img}
+        return Frame({}, img)
     gi_cfg = gi_settings.from_scene(scene.lumen, viewport=not final)
     sky = state.sky
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
@@ -248,8 +256,10 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
                              sky_cones=0 if gi_cfg.enabled else direct_light.SKY_CONES,
                              light_texture=state.light_texture)
     t4 = time.perf_counter()
-    indirect = np.zeros_like(out["direct"])
-    combined = out["combined"]
+    g = gbuf["textures"]
+    textures = {"Combined": out["textures"]["combined"],
+                "Diffuse Direct": out["textures"]["direct"], "Diffuse Indirect": None,
+                "Diffuse Color": g["albedo"], "Normal": g["normal"]}
     gi_info = {}
     if gi_cfg.enabled:
         view_key = (np.asarray(view_proj, np.float64).tobytes(), width, height)
@@ -258,9 +268,11 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
                                    view_proj=view_proj)
         comp = composite.composite(gbuf, out["textures"]["direct"], gi_out["texture"], sky,
                                    inv_vp, width, height)
-        indirect, combined = comp["indirect"], comp["combined"]
+        textures["Combined"] = comp["textures"]["combined"]
+        textures["Diffuse Indirect"] = comp["textures"]["indirect"]
         gi_info = dict(gi_seconds=gi_out["timings"]["total"], gi_timings=gi_out["timings"],
                        gi_iterations=gi_out["iterations"], gi_converged=gi_out["converged"],
+                       gi_progress=gi_out["progress"],
                        gi_sc_tiles=(gi_out["sc_tiles"], gi_out["sc_tiles_total"]),
                        gi_settings=gi_cfg.__dict__.copy())
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
@@ -275,14 +287,43 @@ def frame(depsgraph, scene, view_proj, cam_pos, clip_end, width, height, view="C
         gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
-        position=gbuf["position"], normal=gbuf["normal"], albedo=gbuf["albedo"],
-        emission=gbuf["emission"], direct=out["direct"], indirect=indirect, combined=combined,
         gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, **gi_info)
-    shown = _debug_image(view, state, gbuf, cam_pos, width, height, combined, out["direct"],
-                         indirect, gi_cfg)
-    LAST_RENDER["shown"] = shown
-    return {"Combined": shown, "Diffuse Direct": out["direct"], "Diffuse Indirect": indirect,
-            "Diffuse Color": gbuf["albedo"], "Normal": gbuf["normal"]}
+    result = Frame(textures, None, width, height)
+    if KEEP_IMAGES or view != "COMBINED":
+        images = dict(position=result.read(g["position"]), normal=result.read(g["normal"]),
+                      albedo=result.read(g["albedo"]), emission=result.read(g["emission"]),
+                      direct=result.read(textures["Diffuse Direct"]),
+                      indirect=result.pass_array("Diffuse Indirect"),
+                      combined=result.read(textures["Combined"]))
+        if KEEP_IMAGES:
+            LAST_RENDER.update(images, shown=images["combined"])
+        if view != "COMBINED":
+            result.shown = _debug_image(view, state, gbuf, images, cam_pos, width, height,
+                                        gi_cfg)
+            LAST_RENDER["shown"] = result.shown
+    return result
+
+
+class Frame:
+    """A frame's passes as GPU textures ({pass name: GPUTexture or None}) or, for a debug view,
+    `shown` (float32 [h, w, 4]) in place of Combined. Read-backs happen only on request."""
+
+    def __init__(self, textures: dict, shown=None, width: int = 0, height: int = 0):
+        self.textures, self.shown = textures, shown
+        self.width, self.height = width, height
+
+    def read(self, tex) -> np.ndarray:
+        from .resources import read_texture
+        return read_texture(tex, (self.height, self.width, -1))
+
+    def pass_array(self, name: str) -> np.ndarray:
+        """float32 [h, w, 4] of a pass (Combined: the debug view's image when there is one)."""
+        if name == "Combined" and self.shown is not None:
+            return self.shown
+        tex = self.textures.get(name)
+        if tex is None:
+            return np.zeros((self.height, self.width, 4), np.float32)
+        return self.read(tex)
 
 
 def hybrid_colours(hit: np.ndarray, global_part) -> np.ndarray:
@@ -309,8 +350,9 @@ def _hybrid_trace(state, scene, cam_pos, inv_vp, width, height, clip_end):
                       min(float(clip_end), 100.0))
 
 
-def _debug_image(view, state, gbuf, cam_pos, width, height, combined, direct, indirect, gi_cfg):
-    """The image Combined shows for a debug view (a copy, alpha 1)."""
+def _debug_image(view, state, gbuf, images, cam_pos, width, height, gi_cfg):
+    """The image Combined shows for a debug view (a copy, alpha 1); `images`: the frame's
+    read-back passes (a debug view is the only viewport frame that reads back)."""
     if view in CARD_VIEWS:
         shown = state.surface_cache.view(state.resources, gbuf, cam_pos, width, height,
                                          CARD_VIEWS[view])
@@ -322,9 +364,11 @@ def _debug_image(view, state, gbuf, cam_pos, width, height, combined, direct, in
         shown = np.zeros((height, width, 4), np.float32)
         shown[..., 0] = (w == 0).astype(np.float32)
         shown[..., 1] = (w > 0).astype(np.float32)
+        shown[shown[..., 3] < 0] = 0.0
     else:
-        shown = {"DIRECT": direct, "INDIRECT": indirect, "ALBEDO": gbuf["albedo"],
-                 "NORMAL": gbuf["normal"] * 0.5 + 0.5}.get(view, combined).copy()
+        shown = {"DIRECT": images["direct"], "INDIRECT": images["indirect"],
+                 "ALBEDO": images["albedo"],
+                 "NORMAL": images["normal"] * 0.5 + 0.5}.get(view, images["combined"]).copy()
     shown = np.array(shown, np.float32)
     shown[..., 3] = 1.0
     return shown
@@ -362,12 +406,18 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         for name, channels, chan_id, _ in PASSES:
             self.add_pass(name, channels, chan_id, layer=layer)
         result = self.begin_result(0, 0, width, height, layer=layer)
+        # An F12 render owns its GPU state, as a Cycles session does: made here, released
+        # before render() returns (while its GPU context is current).
+        state = SceneState()
         try:
             if scene.camera is None:
                 raise RuntimeError(f"scene {scene.name!r} has no camera")
             vp, cam_pos, clip_end = view_projection(depsgraph, scene.camera, width, height)
-            passes = frame(depsgraph, scene, vp, cam_pos, clip_end, width, height,
-                           debug_view(scene), final=True)
+            fr = frame(state, depsgraph, scene, vp, cam_pos, clip_end, width, height,
+                       debug_view(scene), final=True)
+            passes = {name: fr.pass_array(name)
+                      for name in ("Combined",) + tuple(p[0] for p in PASSES)
+                      if name == "Combined" or fr.textures}
             for note in LAST_RENDER.get("notes", []):
                 self.report({'WARNING'}, f"Lumen GI: {note}")
         except Exception as exc:   # reported, never raised into Blender's render job
@@ -376,6 +426,11 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             LAST_RENDER["error"] = str(exc)
             LAST_RENDER["traceback"] = traceback.format_exc()
             passes = {"Combined": np.zeros((height, width, 4), np.float32)}
+        finally:
+            # free its textures now, with the GPU context current (reference cycles included):
+            # left to the collector they are freed later without one, and Blender crashes
+            fr = state = None
+            gc.collect()
         rl = result.layers[0]
         written = []
         for name, rgba in passes.items():
@@ -417,8 +472,10 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             self.tag_redraw()
 
     def view_draw(self, context, depsgraph):
-        """The viewport: frame() at the region size for the view's matrices, Combined drawn with
-        the display colour transform (Blender's RenderEngine template)."""
+        """The viewport: frame() at the region size for the view's matrices, its Combined
+        texture drawn as it is on the GPU (no read-back, no upload) with the display colour
+        transform (Blender's RenderEngine template). The engine instance lives as long as the
+        viewport and owns the GPU state, so redraws upload only what changed."""
         import gpu
         from gpu_extras.batch import batch_for_shader
 
@@ -431,11 +488,13 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         ps = pixel_size(scene, context)
         fw, fh = max(1, -(-w // ps)), max(1, -(-h // ps))
         rd = context.region_data
+        if getattr(self, "_state", None) is None:
+            self._state = SceneState()
         try:
-            img = frame(depsgraph, scene, np.array(rd.perspective_matrix, np.float64),
-                        np.array(rd.view_matrix.inverted().translation, np.float64),
-                        float(context.space_data.clip_end), fw, fh, debug_view(scene),
-                        final=False)["Combined"]
+            fr = frame(self._state, depsgraph, scene, np.array(rd.perspective_matrix, np.float64),
+                       np.array(rd.view_matrix.inverted().translation, np.float64),
+                       float(context.space_data.clip_end), fw, fh, debug_view(scene),
+                       final=False)
         except Exception as exc:
             LAST_RENDER["error"] = str(exc)
             draw_message(f"Lumen GI: {exc}", w, h)
@@ -443,7 +502,10 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         LAST_RENDER["pixel_size"] = ps
         if LAST_RENDER.get("gi_converged") is False:
             self.tag_redraw()              # progressive: keep accumulating GI frames
-        tex = gpu.types.GPUTexture((fw, fh), format='RGBA16F', data=float_buffer(img))
+        if fr.shown is not None:           # a debug view's image (computed on the CPU)
+            tex = gpu.types.GPUTexture((fw, fh), format='RGBA16F', data=float_buffer(fr.shown))
+        else:
+            tex = fr.textures["Combined"]
         shader = gpu.shader.from_builtin('IMAGE')
         batch = batch_for_shader(shader, 'TRI_FAN', {
             "pos": ((0, 0), (w, 0), (w, h), (0, h)),
@@ -454,6 +516,9 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         batch.draw(shader)
         self.unbind_display_space_shader()
         gpu.state.blend_set('NONE')
+        progress = LAST_RENDER.get("gi_progress")
+        if progress is not None and progress[0] < progress[1]:
+            draw_message(f"Lumen GI: refining {progress[0]}/{progress[1]}", w, h)
 
 
 def register():

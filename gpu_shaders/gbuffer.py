@@ -147,7 +147,7 @@ def read_texture(tex, width, height):
 
 def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=None) -> dict:
     """Draw `objects` (ObjectInputs) with `view_proj` (4x4); returns {'textures': {name: GPUTexture},
-    name: float32 [h, w, 4] for every attachment, 'depth': [h, w] window depth, timings}.
+    'depth_texture', counts, timings}: nothing is read back (read_texture does, on request).
     `texture_cache` ({id(array): (array, GPUTexture)}, e.g. the SceneState's) keeps material
     texture uploads across frames; entries whose array is not drawn this frame are dropped."""
     import mathutils
@@ -209,9 +209,6 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
     out = {"textures": textures, "depth_texture": depth, "triangles": triangles,
            "draws": sum(1 for g in groups if len(g["pos"])), "texture_uploads": uploaded,
            "textures_resident": len(cache)}
-    for name in ATTACHMENTS:
-        out[name] = read_texture(textures[name], width, height)
-    out["depth"] = resources.read_texture(depth, (height, width))
     out["draw_seconds"] = time.perf_counter() - t1
     out["seconds"] = time.perf_counter() - t0
     return out

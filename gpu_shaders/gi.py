@@ -106,7 +106,13 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         timings["sc_indirect"] += c - b
         timings["probes"] += time.perf_counter() - c
     timings.update(setup=t1 - t0, sc_direct=t2 - t1, total=time.perf_counter() - t0)
+    if final:
+        progress = (len(schedule), len(schedule))
+    else:          # the viewport: frames in the probe history and the least-updated tile's count
+        h = max(int(gi.history), 1)
+        progress = (min(probes.frames, int(cache.pages.count.min(initial=h)), h), h)
     return {"texture": result, "timings": timings, "iterations": len(schedule),
+            "progress": progress,
             "sc_tiles": relit, "sc_tiles_total": len(cache.pages),
             "converged": final or (probes.frames >= gi.history
                                    and cache.pages.converged(gi.history))}

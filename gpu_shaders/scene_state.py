@@ -1,4 +1,5 @@
-"""The engine's per-scene GPU inputs and what a change re-uploads (render and viewport share it).
+"""A render engine instance's GPU inputs and what a change re-uploads (engine.py: a viewport's
+engine instance keeps one for its lifetime, an F12 render makes its own, as Cycles' sessions do).
 
 `SceneState.sync(bake, matrices, lights)` compares a new extraction with what is on the GPU:
     bake         the scene's bake (lumen_addon.bake.SceneBake): which meshes (by content hash)
@@ -24,18 +25,6 @@ from .packing import instance_row, singular
 from .sky_light import SkyLight
 
 RESOURCES = ("atlas", "indirection", "objects", "lights", "cards")
-
-# One state per scene name: F12 renders create a new RenderEngine each time, so the state lives
-# at module level and repeated renders (and the viewport) of a scene share it.
-STATES = {}
-
-
-def state_for(scene_name: str) -> "SceneState":
-    st = STATES.get(scene_name)
-    if st is None:
-        st = STATES[scene_name] = SceneState()
-    return st
-
 
 def instance_table(bake, matrices: dict):
     """(names, mesh hashes, float64 [n, 4, 4] world matrices) of the bake's instances, placed

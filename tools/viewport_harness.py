@@ -10,7 +10,8 @@ view_matrix of the scene camera), space_data (clip_end) and preferences.
     result = run(scene, LumenGIRenderEngine, 640, 360, redraws=4, on_redraw=callback)
     result["drawn"]     float32 [h, w, 4]: the offscreen after the last redraw (display space)
     result["seconds"]   wall time of each view_draw call
-    result["after"]     what on_redraw(i) returned after each redraw
+    result["after"]     what on_redraw(i) returned after each redraw (edits it makes reach the
+                        next redraw: the depsgraph is re-evaluated, as the viewport's is)
 """
 from __future__ import annotations
 
@@ -22,21 +23,27 @@ _CLASSES: dict = {}
 
 
 def _engine_class(base):
+    """A RenderEngine with `base`'s methods and a render() that runs the harness. Not a subclass
+    of `base`: registering a subclass of a registered engine makes Blender lose the Python class
+    of the original (measured: "unable to get Python class for RNA struct 'LUMEN_GI'", and F12
+    of LUMEN_GI then ran no render() at all)."""
     if base not in _CLASSES:
-        class ViewDraw(base):
-            bl_idname = base.bl_idname + "_VIEW_DRAW"
-            bl_label = base.bl_label + " (view_draw harness)"
-
-            def render(self, depsgraph):
-                try:
-                    _JOB["result"] = _draw(self, depsgraph, **_JOB["args"])
-                except Exception:   # reported to the caller, never raised into Blender
-                    import traceback
-                    _JOB["error"] = traceback.format_exc()
-
         import bpy
-        bpy.utils.register_class(ViewDraw)
-        _CLASSES[base] = ViewDraw
+
+        def render(self, depsgraph):
+            try:
+                _JOB["result"] = _draw(self, depsgraph, **_JOB["args"])
+            except Exception:   # reported to the caller, never raised into Blender
+                import traceback
+                _JOB["error"] = traceback.format_exc()
+
+        members = {k: v for k, v in vars(base).items()
+                   if not k.startswith("__") and k not in ("bl_rna", "render")}
+        members.update(bl_idname=base.bl_idname + "_VIEW_DRAW",
+                       bl_label=base.bl_label + " (view_draw harness)", render=render)
+        cls = type("ViewDraw", (bpy.types.RenderEngine,), members)
+        bpy.utils.register_class(cls)
+        _CLASSES[base] = cls
     return _CLASSES[base]
 
 
@@ -68,6 +75,9 @@ def _draw(engine, depsgraph, width, height, redraws, on_redraw):
             engine.view_draw(ctx, depsgraph)
             seconds.append(time.perf_counter() - t)
         after.append(on_redraw(i) if on_redraw else None)
+        if on_redraw:
+            depsgraph.update()    # as the viewport re-evaluates what on_redraw edited
+
     # buffer protocol in memory order (see gpu_shaders.resources.read_texture)
     drawn = np.asarray(off.texture_color.read()).ravel(order="K").astype(np.float32)
     drawn = drawn.reshape(height, width, 4)

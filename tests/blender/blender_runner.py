@@ -40,6 +40,7 @@ def emit(**values):
 LOAD_ADDON = """
 import demo
 addon = demo.load_addon()
+addon.gpu_shaders.engine.KEEP_IMAGES = True   # tests read the frame's images in LAST_RENDER
 """
 
 
