@@ -8,7 +8,8 @@ Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornel
 in a Cornell box), `window` (a closed room lit by a sun through one window), `thin` (a closed
 room with 1.5 cm walls and roof, under one SDF voxel, on a sunlit ground under a uniform sky;
 its roof is invisible to the camera, which looks down into the room: Cycles shows the interior
-black, so any light there is a leak).
+black, so any light there is a leak), `yard` (open, lit only by the courtyard.exr HDRI) and
+`glow` (a room of single-sided quads lit only by an emissive panel).
 
 Engines, each rendering the scene camera at --size x --size with bpy.ops.render.render:
     cycles_ref        Cycles CPU, --cycles-samples (1024), no denoiser, no adaptive sampling,
@@ -20,9 +21,10 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
     eevee_rt          EEVEE with scene.eevee.use_raytracing = True, defaults otherwise
     eevee_volume      EEVEE defaults + an irradiance volume (light probe volume) over the room,
                       baked with bpy.ops.object.lightprobe_cache_bake(subset='ALL')
-    lumen             bpy.ops.lumen.bake() (default bake settings), then LUMEN_GI; GI controls
-                      gi_quality='HIGH', render_frames=16, bounces=3 when the engine has them;
-                      per-object settings stay at their defaults (the roof is not two-sided)
+    lumen             bpy.ops.lumen.bake(), then LUMEN_GI, every setting at its default (what a
+                      user gets without touching anything; per-object settings too: the roof is
+                      not two-sided)
+    lumen_high        the same with gi_quality='HIGH', render_frames=16, bounces=3
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -59,14 +61,16 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 
 import quality_scenes  # noqa: E402
 
-ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen")
+ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
+           "lumen_high")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
 BLACK = 1e-4                          # luminance under which a Cycles pixel counts as black
 EPS = 0.01                            # relMSE denominator term
 LUM = np.array([0.2126, 0.7152, 0.0722])
-LUMEN_GI_SETTINGS = (("gi_quality", "HIGH"), ("render_frames", 16), ("bounces", 3))
+# lumen: every setting at its default (what a user gets); lumen_high: the High preset
+LUMEN_HIGH_SETTINGS = (("gi_quality", "HIGH"), ("render_frames", 16), ("bounces", 3))
 
 
 # Rendering -------------------------------------------------------------------------------------
@@ -431,7 +435,11 @@ def lumen_error():
     return None
 
 
-def run_lumen(ctx):
+def run_lumen_high(ctx):
+    return run_lumen(ctx, LUMEN_HIGH_SETTINGS)
+
+
+def run_lumen(ctx, overrides=()):
     import bpy
 
     scene = ctx["scene"]
@@ -439,7 +447,7 @@ def run_lumen(ctx):
     settings = getattr(scene, "lumen", None)
     if settings is None:
         raise RuntimeError("scene.lumen is missing: the add-on is not registered")
-    for attr, value in LUMEN_GI_SETTINGS:
+    for attr, value in overrides:
         if hasattr(settings, attr):
             try:
                 setattr(settings, attr, value)
@@ -456,6 +464,7 @@ def run_lumen(ctx):
         raise RuntimeError(f"lumen.bake returned {sorted(result)}: {settings.last_status}")
     scene.render.engine = "LUMEN_GI"
     engine = lumen_engine()
+    engine.KEEP_IMAGES = True        # hidden_drawn reads the G-buffer positions
     engine.LAST_RENDER.clear()
     warm = warm_up(scene, ctx["path"], ctx["log"])
     err = lumen_error()
@@ -505,7 +514,8 @@ def hidden_drawn(scene, position, share=0.02):
 
 
 RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "eevee": run_eevee,
-           "eevee_rt": run_eevee_rt, "eevee_volume": run_eevee_volume, "lumen": run_lumen}
+           "eevee_rt": run_eevee_rt, "eevee_volume": run_eevee_volume, "lumen": run_lumen,
+           "lumen_high": run_lumen_high}
 
 
 # Metrics and images ----------------------------------------------------------------------------

@@ -15,6 +15,12 @@ ground of `thin` too), and each has a camera. All numbers live in the dictionari
              bright uniform sky; the roof is invisible to camera rays (`visible_camera = False`,
              it still blocks light) and the camera looks down into the room from above: Cycles
              shows the interior black, anything lit there is leaked light
+    yard     an open yard lit only by Blender's bundled courtyard.exr HDRI (World: Environment
+             Texture -> Background, no light): a ground, a wall with a roofed porch whose
+             shade the sky must leave darker, two boxes; camera outside looking at the porch
+    glow     a room lit only by emission (black world, no light): one mesh of single-sided,
+             zero-thickness quads facing in (an imported OBJ's walls, two materials), an
+             emissive ceiling panel, a box; camera inside
 
 `build(name)` replaces the current file with the scene and returns it (renamed to `name`).
 `add_probe_volume(scene)` adds the EEVEE irradiance volume of PROBE_VOLUMES[scene name].
@@ -77,6 +83,28 @@ THIN = dict(
     camera=(3.2, -4.6, 7.4), target=(0.0, 0.1, 0.3), lens=32.0,
 )
 
+# yard: ground top at z = 0; a 6 m wall along +Y with a porch roof in front of it.
+YARD = dict(
+    hdri="courtyard.exr",                        # Blender's datafiles/studiolights/world
+    strength=1.0,
+    ground=(14.0, 14.0, 0.3), ground_albedo=(0.45, 0.42, 0.38),
+    wall=((-3.0, 1.5, 0.0), (3.0, 1.8, 2.8)), wall_albedo=(0.75, 0.72, 0.68),
+    roof=((-2.0, -0.5, 2.4), (2.0, 1.5, 2.5)), roof_albedo=(0.6, 0.3, 0.2),
+    boxes=(("Crate", (-0.8, 0.5, 0.0), (0.7, 0.7, 0.7), 20.0, (0.3, 0.45, 0.7)),
+           ("Block", (1.8, -1.2, 0.0), (0.8, 0.8, 1.2), -10.0, (0.7, 0.7, 0.7))),
+    camera=(2.6, -6.5, 1.7), target=(0.0, 0.6, 1.0), lens=28.0,
+)
+
+# glow: interior x in [-2, 2], y in [-1.5, 1.5], z in [0, 2.6]; single-sided quads facing in.
+GLOW = dict(
+    inner=(4.0, 3.0, 2.6),
+    wall_albedo=(0.7, 0.7, 0.7), floor_albedo=(0.55, 0.45, 0.35),
+    panel=((-0.5, -0.4), (0.5, 0.4), 2.55),     # emissive quad under the ceiling, facing down
+    panel_colour=(1.0, 0.9, 0.75), panel_strength=12.0,
+    box=((0.6, 0.2, 0.0), (0.7, 0.7, 0.9), 25.0, (0.7, 0.7, 0.7)),
+    camera=(-1.7, -1.3, 1.5), target=(0.6, 0.5, 0.8), lens=16.0,
+)
+
 # EEVEE irradiance volumes: (centre, half size). Each reaches past the room's walls (10-20 cm
 # beyond their outer faces): measured here, a volume fitted to the interior (or inset) bakes
 # without error but adds no light to the render (a closed room lit by a point light: mean
@@ -85,10 +113,12 @@ PROBE_VOLUMES = {
     "cornell": ((0.0, 0.0, 1.0), (1.2, 1.2, 1.2)),
     "window": ((0.0, 0.0, 1.5), (2.4, 2.4, 1.8)),
     "thin": ((0.0, 0.0, 1.1), (1.7, 1.7, 1.3)),
+    "yard": ((0.0, 0.0, 1.5), (4.0, 3.0, 1.7)),
+    "glow": ((0.0, 0.0, 1.3), (2.1, 1.6, 1.4)),
 }
 PROBE_RESOLUTION = None          # None: Blender's default probe grid; else (x, y, z)
 
-SCENES = ("cornell", "window", "thin")
+SCENES = ("cornell", "window", "thin", "yard", "glow")
 CAMERA_HIDDEN = {"thin": ("roof",)}
 
 
@@ -265,7 +295,83 @@ def build_thin():
     return scene
 
 
-BUILDERS = {"cornell": build_cornell, "window": build_window, "thin": build_thin}
+def _hdri_world(scene, filename, strength):
+    """An Environment Texture of one of Blender's bundled HDRIs into the Background."""
+    import os
+
+    import bpy
+
+    folder = bpy.utils.system_resource('DATAFILES', path="studiolights/world")
+    world = bpy.data.worlds.new("World")
+    if world.node_tree is None:
+        world.use_nodes = True
+    tree = world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = bpy.data.images.load(os.path.join(folder, filename), check_existing=True)
+    bg = tree.nodes["Background"]
+    tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = strength
+    scene.world = world
+    return world
+
+
+def build_yard():
+    y = YARD
+    scene = _new_file("yard")
+    gx, gy, gz = y["ground"]
+    box(scene, "Ground", (-gx / 2, -gy / 2, -gz), (gx / 2, gy / 2, 0.0),
+        lambert("Ground", y["ground_albedo"]))
+    box(scene, "Wall", *y["wall"], lambert("Wall", y["wall_albedo"]))
+    box(scene, "PorchRoof", *y["roof"], lambert("Roof", y["roof_albedo"]))
+    for name, (x, yy, z), (sx, sy, sz), rot, colour in y["boxes"]:
+        box(scene, name, (x - sx / 2, yy - sy / 2, z), (x + sx / 2, yy + sy / 2, z + sz),
+            lambert(name, colour), rot)
+    _hdri_world(scene, y["hdri"], y["strength"])
+    _camera(scene, y["camera"], y["target"], y["lens"])
+    return scene
+
+
+def build_glow():
+    import bpy
+
+    g = GLOW
+    scene = _new_file("glow")
+    (ix, iy, iz) = g["inner"]
+    x, yy = ix / 2.0, iy / 2.0
+    v = [(sx * x, sy * yy, z) for z in (0.0, iz) for sy in (-1, 1) for sx in (-1, 1)]
+    # quads wound so that their normals face into the room; floor first (material 1)
+    faces = [(0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)]
+    faces = [tuple(reversed(f)) for f in faces]
+    mesh = bpy.data.meshes.new("Room")
+    mesh.from_pydata(v, [], faces)
+    mesh.update()
+    mesh.materials.append(lambert("RoomWalls", g["wall_albedo"]))
+    mesh.materials.append(lambert("RoomFloor", g["floor_albedo"]))
+    mesh.polygons[0].material_index = 1
+    room = bpy.data.objects.new("Room", mesh)
+    scene.collection.objects.link(room)
+    (px0, py0), (px1, py1), pz = g["panel"]
+    pmesh = bpy.data.meshes.new("Panel")
+    pmesh.from_pydata([(px0, py0, pz), (px1, py0, pz), (px1, py1, pz), (px0, py1, pz)], [],
+                      [(3, 2, 1, 0)])                 # facing down
+    pmesh.update()
+    glow = lambert("PanelGlow", (0.8, 0.8, 0.8))
+    bsdf = glow.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Emission Color"].default_value = (*g["panel_colour"], 1.0)
+    bsdf.inputs["Emission Strength"].default_value = g["panel_strength"]
+    pmesh.materials.append(glow)
+    panel = bpy.data.objects.new("Panel", pmesh)
+    scene.collection.objects.link(panel)
+    (bx, by, bz), (sx, sy, sz), rot, colour = g["box"]
+    box(scene, "Box", (bx - sx / 2, by - sy / 2, bz), (bx + sx / 2, by + sy / 2, bz + sz),
+        lambert("Box", colour), rot)
+    _world(scene, (0.0, 0.0, 0.0))
+    _camera(scene, g["camera"], g["target"], g["lens"])
+    return scene
+
+
+BUILDERS = {"cornell": build_cornell, "window": build_window, "thin": build_thin,
+            "yard": build_yard, "glow": build_glow}
 
 
 def build(name):
