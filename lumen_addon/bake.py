@@ -143,6 +143,7 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         raise SceneBakeError([("scene", "no visible mesh objects to bake")])
     problems, instances, todo, card_todo, digests = [], [], {}, {}, {}
     warnings = []
+    centres = [(o.name, _world_centre(o)) for o in objects]
     for obj in objects:
         m = np.asarray(obj.matrix_world, dtype=np.float64)
         if m.shape != (4, 4) or not np.isfinite(m).all():
@@ -160,6 +161,9 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
             problems.append((obj.name, str(exc)))
             continue
         key = mesh_hash(obj, settings)
+        if not obj.two_sided and _faces_inward(obj) and _holds_others(obj, m, centres):
+            # its orientation may depend on what it holds (scene_points): another key
+            key = hashlib.sha1((key + ":holds others").encode()).hexdigest()[:20]
         ckey = cards_hash(obj, key, settings, digests)
         instances.append(Instance(obj.name, key, m, ckey))
         todo.setdefault(key, obj)
@@ -170,6 +174,16 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         if not (np.isfinite(value) and value > 0):
             raise SceneBakeError([("scene", f"{name} must be a positive number, got {value!r}")])
 
+    def scene_points(obj):
+        """The other objects' centres in obj's local space (geometry.orient_triangles: an
+        inward-facing closed shell around some of them is a room seen from inside)."""
+        others = np.array([c for n, c in centres if n != obj.name and c is not None])
+        try:
+            inv = np.linalg.inv(np.asarray(obj.matrix_world, np.float64))
+        except np.linalg.LinAlgError:
+            return None
+        return others @ inv[:3, :3].T + inv[:3, 3] if len(others) else None
+
     # Winding fixes (geometry.orient_triangles), once per mesh for its SDF and its cards alike.
     orientations = {}
 
@@ -177,7 +191,8 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         if obj.two_sided:
             return None
         if key not in orientations:
-            orientations[key] = orient_triangles(obj.vertices, obj.triangles)
+            orientations[key] = orient_triangles(obj.vertices, obj.triangles,
+                                                 inside_points=scene_points(obj))
         return orientations[key]
 
     meshes, reused = {}, 0
@@ -216,6 +231,47 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         progress(1.0, "")
     return SceneBake(settings, meshes, instances, time.perf_counter() - start, reused, warnings,
                      cards, atlas)
+
+
+def _local_bounds(obj):
+    v = np.asarray(obj.vertices, np.float64).reshape(-1, 3)
+    v = v[np.isfinite(v).all(axis=1)]
+    return (v.min(axis=0), v.max(axis=0)) if len(v) else None
+
+
+def _world_centre(obj):
+    """World centre of an object's vertex bounds (None when it has none or cannot be placed)."""
+    b = _local_bounds(obj)
+    m = np.asarray(obj.matrix_world, np.float64)
+    if b is None or m.shape != (4, 4) or not np.isfinite(m).all():
+        return None
+    return m[:3, :3] @ (0.5 * (b[0] + b[1])) + m[:3, 3]
+
+
+def _faces_inward(obj) -> bool:
+    """Negative total signed volume: some closed shell of the mesh faces inwards (a room seen
+    from inside, or an inside-out object); only then can the scene around it change its bake."""
+    v = np.asarray(obj.vertices, np.float64).reshape(-1, 3)
+    t = np.asarray(obj.triangles, np.int64).reshape(-1, 3)
+    if not len(t) or not np.isfinite(v).all():
+        return False
+    a, b, c = (v[t[:, k]] - v.mean(axis=0) for k in range(3))
+    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum()) < 0.0
+
+
+def _holds_others(obj, m, centres) -> bool:
+    """Whether another object's centre lies in this object's world bounds (cheap: decides only
+    whether the bake key must carry its context, see scene_points)."""
+    b = _local_bounds(obj)
+    others = [c for n, c in centres if n != obj.name and c is not None]
+    if b is None or not others:
+        return False
+    corners = np.array([[x, y, z] for x in (b[0][0], b[1][0]) for y in (b[0][1], b[1][1])
+                        for z in (b[0][2], b[1][2])])
+    w = corners @ m[:3, :3].T + m[:3, 3]
+    lo, hi = w.min(axis=0), w.max(axis=0)
+    c = np.asarray(others)
+    return bool(np.any(np.all((c >= lo) & (c <= hi), axis=1)))
 
 
 def _bake_cards(todo: dict, settings: BakeSettings, previous, warnings, progress, orientation) -> dict:

@@ -281,7 +281,7 @@ def boundary_loops(vertices: np.ndarray, triangles: np.ndarray):
     return centres, radii
 
 
-def orient_triangles(vertices, triangles) -> Orientation:
+def orient_triangles(vertices, triangles, inside_points=None) -> Orientation:
     """Make the faces of every part agree, and closed parts face outwards.
 
     A part is the triangles connected through manifold edges (edges of exactly two faces); edges
@@ -294,6 +294,9 @@ def orient_triangles(vertices, triangles) -> Orientation:
     inside-out on purpose. An empty inward-facing shell cannot be told from an inside-out object
     and is flipped (a room seen from inside without anything in it bakes well as two-sided).
     A part that no winding makes consistent (a Moebius strip) is left as it is.
+    inside_points (mesh-local, optional): where the rest of the scene is (other objects' centres):
+    an inward part that encloses one is a room seen from inside (an imported room of
+    single-sided walls with the furniture, lights or camera in it) and is kept as modelled.
     """
     v = np.asarray(vertices, np.float64)
     t = np.asarray(triangles, np.int64)
@@ -358,6 +361,13 @@ def orient_triangles(vertices, triangles) -> Orientation:
     inward = closed & (volume < 0)
     if inward.any():
         inward &= ~_on_purpose(tri, par, cid, closed, volume, area)
+    pts = None if inside_points is None else np.asarray(inside_points, np.float64).reshape(-1, 3)
+    if inward.any() and pts is not None and len(pts):
+        in_parts = np.flatnonzero(inward[cid])
+        wound = np.where(par[in_parts, None, None].astype(bool), tri[in_parts][:, [0, 2, 1]],
+                         tri[in_parts])
+        _, around = _enclosing(wound, cid[in_parts], pts, np.full(len(pts), -1))
+        inward[np.unique(around)] = False          # rooms: something of the scene is inside
     par = par ^ inward[cid]
 
     kind = np.where(bad, NON_ORIENTABLE, np.where(closed, CLOSED, OPEN)).astype(np.int8)
