@@ -21,6 +21,12 @@ ground of `thin` too), and each has a camera. All numbers live in the dictionari
     glow     a room lit only by emission (black world, no light): one mesh of single-sided,
              zero-thickness quads facing in (an imported OBJ's walls, two materials), an
              emissive ceiling panel, a box; camera inside
+    imported a room written as an OBJ file (one object, four materials by `usemtl`, single-sided
+             quads facing in, an open front) and Stanford's bunny (../shared/meshes, a file no
+             one here wrote; skipped without it), both brought in by Blender's own OBJ importer
+             (bpy.ops.wm.obj_import), lit by an area light under the ceiling and the sky
+    textured a floor and two walls whose Base Color is an Image Texture (a brick pattern PNG
+             written at build time, sRGB), a sun and a uniform sky
 
 `build(name)` replaces the current file with the scene and returns it (renamed to `name`).
 `add_probe_volume(scene)` adds the EEVEE irradiance volume of PROBE_VOLUMES[scene name].
@@ -105,6 +111,28 @@ GLOW = dict(
     camera=(-1.7, -1.3, 1.5), target=(0.6, 0.5, 0.8), lens=16.0,
 )
 
+# imported: interior x in [-2, 2], y in [-2, 2], z in [0, 2.8]; open at y = -2.
+IMPORTED = dict(
+    inner=(4.0, 4.0, 2.8),
+    materials={"floor": (0.6, 0.55, 0.5), "walls": (0.75, 0.75, 0.75), "left": (0.7, 0.2, 0.15),
+               "ceiling": (0.8, 0.8, 0.8)},
+    mesh="stanford-bunny.obj", mesh_height=1.0, mesh_at=(0.3, 0.4, 0.0),
+    mesh_albedo=(0.8, 0.75, 0.6),
+    light_size=0.8, light_power=250.0, light_z=2.7,
+    sky=(0.05, 0.06, 0.08),
+    camera=(0.0, -5.2, 1.5), target=(0.0, 0.0, 1.1), lens=28.0,
+)
+
+# textured: a brick-patterned floor and back walls
+TEXTURED = dict(
+    floor=6.0, wall_h=2.5, wall_t=0.15,
+    brick=(0.55, 0.22, 0.15), mortar=(0.75, 0.72, 0.68), bricks_per_m=(4.0, 8.0),
+    image_size=256,
+    sun_strength=4.0, sun_elevation=40.0, sun_azimuth=-35.0, sun_angle=0.0093,
+    sky=(0.35, 0.45, 0.6),
+    camera=(3.2, -3.6, 1.8), target=(-0.3, 0.6, 0.7), lens=24.0,
+)
+
 # EEVEE irradiance volumes: (centre, half size). Each reaches past the room's walls (10-20 cm
 # beyond their outer faces): measured here, a volume fitted to the interior (or inset) bakes
 # without error but adds no light to the render (a closed room lit by a point light: mean
@@ -115,10 +143,13 @@ PROBE_VOLUMES = {
     "thin": ((0.0, 0.0, 1.1), (1.7, 1.7, 1.3)),
     "yard": ((0.0, 0.0, 1.5), (4.0, 3.0, 1.7)),
     "glow": ((0.0, 0.0, 1.3), (2.1, 1.6, 1.4)),
+    "imported": ((0.0, 0.0, 1.4), (2.1, 2.1, 1.5)),
+    "textured": ((0.0, 0.0, 1.3), (3.1, 3.1, 1.4)),
 }
 PROBE_RESOLUTION = None          # None: Blender's default probe grid; else (x, y, z)
 
-SCENES = ("cornell", "window", "thin", "yard", "glow")
+SCENES = ("cornell", "window", "thin", "yard", "glow", "imported", "textured")
+SHARED_MESHES = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "meshes"
 CAMERA_HIDDEN = {"thin": ("roof",)}
 
 
@@ -370,8 +401,154 @@ def build_glow():
     return scene
 
 
+def _write_room_obj(path, inner, materials):
+    """An OBJ + MTL of a room: quads facing in, one `usemtl` group per material, no front wall
+    (what a modelling tool exports: single-sided, zero thickness, one object)."""
+    ix, iy, iz = inner
+    x, y = ix / 2.0, iy / 2.0
+    v = [(-x, -y, 0), (x, -y, 0), (x, y, 0), (-x, y, 0),
+         (-x, -y, iz), (x, -y, iz), (x, y, iz), (-x, y, iz)]
+    # faces wound counter-clockwise seen from inside (OBJ indices from 1; OBJ's Y is up: the
+    # importer's default forward/up axes turn it into Blender's Z up)
+    faces = {"floor": [(1, 2, 3, 4)], "ceiling": [(5, 8, 7, 6)], "walls": [(4, 3, 7, 8), (2, 6, 7, 3)],
+             "left": [(1, 4, 8, 5)]}
+    mtl = path.with_suffix(".mtl")
+    mtl.write_text("".join(f"newmtl {name}\nKd {r} {g} {b}\nKs 0 0 0\nillum 1\n\n"
+                           for name, (r, g, b) in materials.items()))
+    lines = [f"mtllib {mtl.name}", "o Room"]
+    lines += [f"v {a:.6f} {c:.6f} {-b:.6f}" for a, b, c in v]      # Blender (x, y, z) -> OBJ (x, z, -y)
+    for name, quads in faces.items():
+        lines.append(f"usemtl {name}")
+        lines += ["f " + " ".join(str(i) for i in q) for q in quads]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def _as_lambert(obj):
+    """The importer's Principled materials made pure Lambert, like every benchmark material."""
+    for slot in obj.material_slots:
+        mat = slot.material
+        if mat is None or mat.node_tree is None:
+            continue
+        bsdf = mat.node_tree.nodes.get("Principled BSDF")
+        if bsdf is not None:
+            bsdf.inputs["Specular IOR Level"].default_value = SPECULAR_IOR_LEVEL
+            bsdf.inputs["Roughness"].default_value = ROUGHNESS
+            bsdf.inputs["Metallic"].default_value = 0.0
+
+
+def build_imported():
+    import tempfile
+    from pathlib import Path
+
+    import bpy
+
+    im = IMPORTED
+    scene = _new_file("imported")
+    folder = Path(tempfile.mkdtemp(prefix="lumen_bench_obj_"))
+    room_path = folder / "room.obj"
+    _write_room_obj(room_path, im["inner"], im["materials"])
+    bpy.ops.wm.obj_import(filepath=str(room_path))
+    for obj in bpy.context.selected_objects:
+        _as_lambert(obj)
+    mesh_path = SHARED_MESHES / im["mesh"]
+    if not mesh_path.is_file():
+        raise FileNotFoundError(f"{mesh_path} is missing (../shared/meshes beside the checkout)")
+    bpy.ops.wm.obj_import(filepath=str(mesh_path))
+    for obj in bpy.context.selected_objects:
+        dims = max(obj.dimensions)
+        obj.scale = [im["mesh_height"] / max(dims, 1e-9)] * 3
+        bpy.context.view_layer.update()
+        lo = min((obj.matrix_world @ __import__("mathutils").Vector(c)).z for c in obj.bound_box)
+        obj.location = (im["mesh_at"][0], im["mesh_at"][1], obj.location.z - lo)
+        obj.data.materials.clear()
+        obj.data.materials.append(lambert("Bunny", im["mesh_albedo"]))
+    data = bpy.data.lights.new("Light", 'AREA')
+    data.shape = 'SQUARE'
+    data.size = im["light_size"]
+    data.energy = im["light_power"]
+    light = bpy.data.objects.new("Light", data)
+    light.location = (0.0, 0.0, im["light_z"])
+    light.visible_camera = False
+    scene.collection.objects.link(light)
+    _world(scene, im["sky"])
+    _camera(scene, im["camera"], im["target"], im["lens"])
+    return scene
+
+
+def _brick_png(path, size, brick, mortar, rows):
+    """A brick pattern (sRGB PNG): `rows` courses, half-brick offset, mortar lines."""
+    import numpy as np
+    import OpenImageIO as oiio
+
+    yy, xx = np.mgrid[0:size, 0:size] / size
+    course = np.floor(yy * rows)
+    u = (xx * rows / 2 + 0.5 * (course % 2)) % 1.0
+    v = (yy * rows) % 1.0
+    is_mortar = (u < 0.04) | (v < 0.08)
+    rng = np.random.default_rng(3)
+    tint = 0.85 + 0.3 * rng.random((rows, rows))[course.astype(int) % rows,
+                                                   np.floor(xx * rows / 2 + 0.5 * (course % 2)).astype(int) % rows]
+    lin = np.where(is_mortar[..., None], mortar, np.asarray(brick) * tint[..., None])
+    srgb = np.where(lin <= 0.0031308, 12.92 * lin, 1.055 * np.power(lin, 1 / 2.4) - 0.055)
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), oiio.ImageSpec(size, size, 3, "uint8"))
+    out.write_image(np.clip(np.round(srgb * 255), 0, 255).astype(np.uint8))
+    out.close()
+
+
+def _textured(name, image):
+    mat = lambert(name, (0.8, 0.8, 0.8))
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    tree.links.new(tex.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    return mat
+
+
+def build_textured():
+    import tempfile
+    from pathlib import Path
+
+    import bpy
+
+    t = TEXTURED
+    scene = _new_file("textured")
+    png = Path(tempfile.mkdtemp(prefix="lumen_bench_tex_")) / "bricks.png"
+    _brick_png(png, t["image_size"], t["brick"], t["mortar"], 8)
+    image = bpy.data.images.load(str(png))
+    image.pack()                                     # the scene no longer needs the temp file
+    mat = _textured("Bricks", image)
+    f, h, w = t["floor"] / 2.0, t["wall_h"], t["wall_t"]
+    floor = box(scene, "Floor", (-f, -f, -0.2), (f, f, 0.0), mat)
+    back = box(scene, "BackWall", (-f, f - w, 0.0), (f, f, h), mat)
+    side = box(scene, "SideWall", (-f, -f, 0.0), (-f + w, f - w, h), mat)
+    for obj in (floor, back, side):
+        _box_uvs(obj, t["bricks_per_m"][0] / 8.0)
+    _sun(scene, t["sun_strength"], t["sun_elevation"], t["sun_azimuth"], t["sun_angle"])
+    _world(scene, t["sky"])
+    _camera(scene, t["camera"], t["target"], t["lens"])
+    return scene
+
+
+def _box_uvs(obj, repeats_per_m):
+    """Box-projected UVs in world metres (each face takes the two axes it spans)."""
+    import numpy as np
+
+    mesh = obj.data
+    uv = mesh.uv_layers.new(name="UVMap")
+    m = np.array(obj.matrix_world)
+    co = np.array([m[:3, :3] @ v.co + m[:3, 3] for v in mesh.vertices])
+    for poly in mesh.polygons:
+        axis = int(np.argmax(np.abs(np.array(poly.normal))))
+        keep = [a for a in range(3) if a != axis]
+        for li in poly.loop_indices:
+            p = co[mesh.loops[li].vertex_index]
+            uv.data[li].uv = (p[keep[0]] * repeats_per_m, p[keep[1]] * repeats_per_m)
+
+
 BUILDERS = {"cornell": build_cornell, "window": build_window, "thin": build_thin,
-            "yard": build_yard, "glow": build_glow}
+            "yard": build_yard, "glow": build_glow, "imported": build_imported,
+            "textured": build_textured}
 
 
 def build(name):
