@@ -149,7 +149,9 @@ PROBE_VOLUMES = {
 PROBE_RESOLUTION = None          # None: Blender's default probe grid; else (x, y, z)
 
 SCENES = ("cornell", "window", "thin", "yard", "glow", "imported", "textured")
-SHARED_MESHES = __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "meshes"
+# ../shared/meshes beside the checkout (LUMEN_SHARED_MESHES overrides; never copied into the repo)
+SHARED_MESHES = __import__("pathlib").Path(__import__("os").environ.get(
+    "LUMEN_SHARED_MESHES", __import__("pathlib").Path(__file__).resolve().parents[2] / "shared" / "meshes"))
 CAMERA_HIDDEN = {"thin": ("roof",)}
 
 
