@@ -211,7 +211,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     from ..operators.extract import extract_scene
     from ..operators.lights import light_table
     from ..operators.world_capture import world_light
-    from . import composite, compute, direct_light, gbuffer, gi, gi_settings
+    from . import composite, compute, direct_light, gbuffer, gi, gi_methods, gi_settings
 
     t0 = time.perf_counter()
     bake, source = scene_bake(scene)
@@ -248,12 +248,14 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         LAST_RENDER["shown"] = img
         return Frame({}, img)
     gi_cfg = gi_settings.from_scene(scene.lumen, viewport=not final)
+    method, method_notes = gi_methods.from_scene(scene.lumen)    # LUMEN, SSGI or RSM
     sky = state.sky
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
     gbuf = gbuffer.render_gbuffer(objects, view_proj, width, height)
     t3 = time.perf_counter()
     out = direct_light.shade(res, gbuf, state.lights, sky, cam_pos, inv_vp, width, height,
-                             sky_cones=0 if gi_cfg.enabled else direct_light.SKY_CONES,
+                             sky_cones=direct_light.SKY_CONES
+                             if gi_methods.direct_has_sky(method, gi_cfg.enabled) else 0,
                              light_texture=state.light_texture)
     t4 = time.perf_counter()
     g = gbuf["textures"]
@@ -263,9 +265,17 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     gi_info = {}
     if gi_cfg.enabled:
         view_key = (np.asarray(view_proj, np.float64).tobytes(), width, height)
-        gi_out = gi.indirect_light(state, gbuf, gi_cfg, view_key, cam_pos, sky,
-                                   min(float(clip_end), 100.0), width, height, changes, final,
-                                   view_proj=view_proj)
+        if method.method == "LUMEN":
+            gi_methods.release(state)
+            gi_out = gi.indirect_light(state, gbuf, gi_cfg, view_key, cam_pos, sky,
+                                       min(float(clip_end), 100.0), width, height, changes, final,
+                                       view_proj=view_proj)
+        else:
+            gi_out = gi_methods.indirect_light(method, state, gbuf, objects, out["textures"],
+                                               gi_cfg, view_key, view_proj, inv_vp, cam_pos, sky,
+                                               min(float(clip_end), 100.0), width, height,
+                                               changes, final)
+            method_notes += gi_methods.notes(method, state)
         comp = composite.composite(gbuf, out["textures"]["direct"], gi_out["texture"], sky,
                                    inv_vp, width, height)
         textures["Combined"] = comp["textures"]["combined"]
@@ -278,10 +288,12 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
             LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])
     t5 = time.perf_counter()
-    MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled))
+    MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled),
+                              **gi_methods.stats(state))
     LAST_RENDER.update(
         view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
-        sky=sky.mean, sun=sky_maps.sun, notes=list(warnings) + sky_notes + [
+        gi_method=method.method,
+        sky=sky.mean, sun=sky_maps.sun, notes=list(warnings) + sky_notes + method_notes + [
             f"{name}: its transform cannot be inverted (a scale of 0?): it casts and bounces no "
             f"light" for name in state.left_out], triangles=gbuf["triangles"],
         gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
@@ -298,8 +310,11 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         if KEEP_IMAGES:
             LAST_RENDER.update(images, shown=images["combined"])
         if view != "COMBINED":
-            result.shown = _debug_image(view, state, gbuf, images, cam_pos, width, height,
-                                        gi_cfg)
+            result.shown = (gi_methods.debug_image(view, state, width, height)
+                            if view in gi_methods.DEBUG_VIEWS or (method.method != "LUMEN"
+                                                                  and view == "PROBES")
+                            else _debug_image(view, state, gbuf, images, cam_pos, width, height,
+                                              gi_cfg))
             LAST_RENDER["shown"] = result.shown
     return result
 

@@ -78,9 +78,19 @@ def draw_gi_settings(layout, s, render=None):
     col.prop(s, "gi_quality")
     sub = col.column()
     sub.active = s.gi_quality != 'OFF'
+    sub.prop(s, "gi_method")
+    if s.gi_method in ('LPV', 'VXGI'):
+        sub.label(text="Not built yet: renders with Lumen", icon='INFO')
     sub.prop(s, "bounces")
     sub.prop(s, "render_frames")
-    sub.prop(s, "gi_gather")
+    if s.gi_method == 'SSGI':
+        for name in ("ssgi_rays", "ssgi_steps", "ssgi_thickness", "ssgi_reuse"):
+            sub.prop(s, name)
+    elif s.gi_method == 'RSM':
+        sub.prop(s, "rsm_resolution")
+        sub.prop(s, "rsm_samples")
+    else:
+        sub.prop(s, "gi_gather")
 
 
 def draw_memory(layout, scene):
@@ -97,6 +107,7 @@ def draw_memory(layout, scene):
         stage = ("Cards" if name.startswith("cards_") else "Global SDF" if name.startswith("global_sdf")
                  else "Screen targets" if name.startswith("screen_")
                  else "Screen probes" if name.startswith("probes_") else "Lights" if name == "lights"
+                 else "SSGI" if name.startswith("ssgi_") else "RSM" if name.startswith("rsm_")
                  else "Mesh SDFs")
         stages[stage] = stages.get(stage, 0) + value
     for label, value in list(stages.items()) + [("Total", sum(memory.values()))]:

@@ -21,6 +21,17 @@ GI_QUALITY_ITEMS = (
     ('HIGH', "High", "An 8 px screen-probe grid, 64^3 clipmaps"))
 
 
+GI_METHOD_ITEMS = (
+    ('LUMEN', "Lumen", "Surface cache, signed distance fields and screen probes: light from "
+     "everything, on or off screen, with many bounces"),
+    ('SSGI', "Screen Space (SSGI)", "Rays through the depth buffer, reading the last frame's "
+     "image: fast and detailed, but blind to anything the screen does not show"),
+    ('RSM', "Reflective Shadow Maps", "One bounce of the lamps' light from what each lamp "
+     "sees, ignoring what stands in the bounced light's way (emission does not bounce)"),
+    ('LPV', "Light Propagation Volumes", "Not built yet: renders with Lumen"),
+    ('VXGI', "Voxel Cone Tracing (VXGI)", "Not built yet: renders with Lumen"))
+
+
 class LumenSceneSettings(bpy.types.PropertyGroup):
     __slots__ = ()   # Blender 5 warns about property groups that accept arbitrary attributes
 
@@ -69,6 +80,11 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                ('ALBEDO', "Albedo", "G-buffer base colour"),
                ('DIRECT', "Direct Light", "Diffuse direct light (albedo excluded)"),
                ('INDIRECT', "Indirect Light", "Diffuse indirect light only (albedo excluded)"),
+               ('SSGI_HITS', "SSGI Hits", "GI Method SSGI: the share of each pixel's rays that "
+                "hit something on screen (green), left the screen (blue) or ran out of steps "
+                "(red)"),
+               ('RSM_FLUX', "RSM Flux", "GI Method RSM: the lights' reflective shadow maps "
+                "side by side, as the light their texels reflect"),
                ('HYBRID', "Mesh vs Global SDF", "SDF trace only: green = hit in the mesh SDFs "
                 "(first 1.8 m), blue = hit in the global SDF clipmaps, black = miss"),
                ('SC_FINAL', "Surface Cache", "The cards' final lighting, seen through the cards "
@@ -97,6 +113,30 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                ('PIXEL', "Per Pixel (Reference)", "64 rays per pixel per frame through the same "
                 "tracer and surface cache: slow, a check of the probes")),
         default='PROBES')
+    gi_method: EnumProperty(
+        name="GI Method", description="Which technique brings the indirect light (the lecture's "
+        "methods side by side, on the same G-buffer, direct light and output)",
+        items=GI_METHOD_ITEMS, default='LUMEN')
+    ssgi_rays: IntProperty(
+        name="SSGI Rays per Pixel", description="Screen-space rays each pixel traces per frame "
+        "(its neighbours' rays are reused as well)", default=4, min=1, max=32)
+    ssgi_steps: IntProperty(
+        name="SSGI Steps", description="Most cells of the depth pyramid a ray visits before it "
+        "gives up (Lumen's screen trace: 50)", default=50, min=4, max=256)
+    ssgi_thickness: FloatProperty(
+        name="SSGI Thickness", description="How thick surfaces are assumed behind what the "
+        "screen shows: a ray that passes farther behind one goes on", default=0.1, min=0.001,
+        soft_max=2.0, subtype='DISTANCE', unit='LENGTH')
+    ssgi_reuse: IntProperty(
+        name="SSGI Ray Reuse", description="Pixels around each pixel whose rays it reuses, as a "
+        "radius (1: 3x3): more samples for free, blurring contact detail", default=1, min=0,
+        max=3)
+    rsm_resolution: IntProperty(
+        name="RSM Resolution", description="Texels per side of each light's reflective shadow "
+        "map (a point light has six, a cube)", default=256, min=16, max=4096)
+    rsm_samples: IntProperty(
+        name="RSM Samples", description="Shadow-map texels each pixel gathers light from per "
+        "frame (the original paper used 400)", default=64, min=1, max=4096)
     bounces: IntProperty(
         name="Bounces", description="Surface-cache bounces an F12 render converges before it "
         "gathers (the viewport keeps bouncing every frame)", default=3, min=1, max=16)

@@ -1,0 +1,167 @@
+"""The render setting GI Method (`scene.lumen.gi_method`): which technique of lecture 21 brings
+the indirect light, on the same G-buffer, direct light and composite.
+
+    LUMEN  gi.py: surface cache, global SDF, screen probes (the default)
+    SSGI   ssgi.py: HZB screen rays reading last frame's lit image; what the screen shows only
+    RSM    rsm.py: one bounce of the lights from reflective shadow maps, no occlusion
+    LPV    light propagation volumes: not built yet, renders with LUMEN and says so
+    VXGI   voxel cone tracing: not built yet, renders with LUMEN and says so
+
+SSGI and RSM bring the bounced light of what they see; the sky's light then comes from the direct
+pass (its SDF-occluded sky light, as with GI Off), so their misses bring nothing and the sky is
+counted once. `indirect_light` returns what gi.indirect_light does (the E_indirect texture and the
+numbers frame() records), so composite.composite works unchanged. Each method keeps its textures
+and history on the engine's SceneState (`state.gi_methods`), freed with it.
+bpy-free: `from_scene` reads plain attributes.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+METHODS = ("LUMEN", "SSGI", "RSM", "LPV", "VXGI")
+BUILT = ("LUMEN", "SSGI", "RSM")
+DEBUG_VIEWS = ("SSGI_HITS", "RSM_FLUX")
+
+
+@dataclass(frozen=True)
+class MethodSettings:
+    method: str = "LUMEN"
+    ssgi_rays: int = 4             # cosine rays per pixel per frame
+    ssgi_steps: int = 50           # HZB cells a ray may visit (the lecture's "HZB Max Step=50")
+    ssgi_thickness: float = 0.1    # metres a surface is assumed thick behind the depth buffer
+    ssgi_reuse: int = 1            # neighbours' rays reused: (2 r + 1)^2 pixels
+    rsm_resolution: int = 256      # texels per side of each light's map
+    rsm_samples: int = 64          # RSM texels gathered per pixel per frame
+
+
+def from_scene(scene_settings) -> tuple:
+    """(MethodSettings, notes): a method not built yet renders with LUMEN, with a note saying so."""
+    s = scene_settings
+    method = str(getattr(s, "gi_method", "LUMEN"))
+    notes = []
+    if method not in BUILT:
+        notes.append(f"GI Method {method} is not built yet: rendering with Lumen")
+        method = "LUMEN"
+    d = MethodSettings()
+    return MethodSettings(
+        method=method, ssgi_rays=int(getattr(s, "ssgi_rays", d.ssgi_rays)),
+        ssgi_steps=int(getattr(s, "ssgi_steps", d.ssgi_steps)),
+        ssgi_thickness=float(getattr(s, "ssgi_thickness", d.ssgi_thickness)),
+        ssgi_reuse=int(getattr(s, "ssgi_reuse", d.ssgi_reuse)),
+        rsm_resolution=int(getattr(s, "rsm_resolution", d.rsm_resolution)),
+        rsm_samples=int(getattr(s, "rsm_samples", d.rsm_samples))), notes
+
+
+def direct_has_sky(settings: MethodSettings, gi_enabled: bool) -> bool:
+    """Whether the direct pass carries the sky light: with GI off, and with the methods whose
+    rays do not read the sky (SSGI, RSM)."""
+    return not gi_enabled or settings.method != "LUMEN"
+
+
+def schedule(gi_cfg, final: bool, frames_in_history: int, history: int, warm: bool):
+    """Blends of the iterations of one frame: F12 runs bounces - 1 warm-up iterations (blend 1;
+    only methods whose iterations feed each other, `warm`) then render_frames averaged (running
+    mean); the viewport one iteration into an exponential history of about `history` frames."""
+    if final:
+        warmup = [1.0] * (max(gi_cfg.bounces - 1, 0) if warm else 0)
+        return warmup + [1.0 / (j + 1) for j in range(max(gi_cfg.render_frames, 1))]
+    m = frames_in_history
+    return [max(1.0 / (m + 1), 1.0 / max(history, 1))]
+
+
+SCENE_CHANGES = {"atlas", "objects", "cards", "lights"}   # SceneState.sync changes that reset
+
+
+def _holder(state, name: str, width: int, height: int):
+    """The method's object on the state (SSGI or RSM, for this image size)."""
+    from .rsm import RSM
+    from .ssgi import SSGI
+
+    methods = getattr(state, "gi_methods", None)
+    if methods is None:
+        methods = state.gi_methods = {}
+    obj = methods.get(name)
+    if obj is None or (obj.width, obj.height) != (width, height):
+        obj = methods[name] = {"SSGI": SSGI, "RSM": RSM}[name](width, height)
+    return obj
+
+
+def indirect_light(settings: MethodSettings, state, gbuf: dict, objects, direct_textures: dict,
+                   gi_cfg, view_key, view_proj, inv_view_proj, cam_pos, sky, t_max: float,
+                   width: int, height: int, changes: set, final: bool) -> dict:
+    """Run SSGI or RSM for one frame; returns {'texture': E_indirect, 'timings', 'iterations',
+    'progress', 'converged', 'sc_tiles', 'sc_tiles_total'} like gi.indirect_light. The history
+    starts again for F12 and whenever the view, the settings, the sky or the scene changed."""
+    t0 = time.perf_counter()
+    release(state, keep=settings.method)
+    m = _holder(state, settings.method, width, height)
+    key = (view_key, settings, sky.key)
+    if final or key != m.key or changes & SCENE_CHANGES:
+        m.reset()
+    m.key = key
+    if settings.method == "SSGI":
+        m.prepare(gbuf, view_proj)
+    else:
+        m.render_maps(objects, state.lights, state.light_texture, settings.rsm_resolution)
+    t1 = time.perf_counter()
+    blends = schedule(gi_cfg, final, m.frames, gi_cfg.history, warm=settings.method == "SSGI")
+    frame0 = 0 if final else state.gi_frame          # F12: the same jitter every render
+    for j, blend in enumerate(blends):
+        if settings.method == "SSGI":
+            m.iterate(gbuf, direct_textures, sky, view_proj, inv_view_proj, cam_pos, settings,
+                      frame0 + j, blend, t_max)
+        else:
+            m.iterate(gbuf, cam_pos, settings.rsm_samples, frame0 + j, blend)
+    state.gi_frame = frame0 + len(blends)
+    prep = "hzb" if settings.method == "SSGI" else "rsm_maps"
+    timings = {prep: t1 - t0, settings.method.lower(): time.perf_counter() - t1,
+               "total": time.perf_counter() - t0}
+    h = max(int(gi_cfg.history), 1)
+    progress = (len(blends), len(blends)) if final else (min(m.frames, h), h)
+    return {"texture": m.history, "timings": timings, "iterations": len(blends),
+            "progress": progress, "converged": final or m.frames >= h,
+            "sc_tiles": 0, "sc_tiles_total": 0}
+
+
+def release(state, keep: str = ""):
+    """Free the other methods' textures and histories (a method switch in the viewport)."""
+    methods = getattr(state, "gi_methods", None) or {}
+    for name in [n for n in methods if n != keep]:
+        del methods[name]
+
+
+def notes(settings: MethodSettings, state) -> list:
+    """What the frame's method leaves out, for frame()'s notes (F12 reports them)."""
+    out = []
+    if settings.method == "RSM":
+        m = (getattr(state, "gi_methods", None) or {}).get("RSM")
+        if m is not None and not m.maps:
+            out.append("GI Method RSM: no light, so no indirect light (emission does not "
+                       "bounce through reflective shadow maps)")
+    return out
+
+
+def stats(state) -> dict:
+    """GPU bytes of the methods' textures (ssgi_*, rsm_*) for MEMORY / LAST_RENDER['gpu_bytes']."""
+    out = {}
+    for m in (getattr(state, "gi_methods", None) or {}).values():
+        out.update(m.stats())
+    return out
+
+
+def debug_image(view: str, state, width: int, height: int):
+    """The image of a GI method's debug view (SSGI_HITS, RSM_FLUX), float32 [h, w, 4]; black
+    when that method is not the one rendering."""
+    methods = getattr(state, "gi_methods", None) or {}
+    if view == "SSGI_HITS" and "SSGI" in methods:
+        img = methods["SSGI"].hit_image()
+        if img.shape[:2] == (height, width):
+            return img
+    if view == "RSM_FLUX" and "RSM" in methods:
+        return methods["RSM"].flux_image(width, height)
+    img = np.zeros((height, width, 4), np.float32)
+    img[..., 3] = 1.0
+    return img

@@ -1,0 +1,15 @@
+/* Temporal accumulation of a GI method's irradiance (gi_methods.py: SSGI, RSM): out =
+ * mix(history, new, blend); blend 1 / (n + 1) is F12's running mean, 1 / history the viewport's
+ * exponential window. Inputs: e_new, e_history; push blend. Output out_image.
+ */
+void main()
+{
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(out_image);
+  if (px.x >= size.x || px.y >= size.y) {
+    return;
+  }
+  vec4 e = texelFetch(e_new, px, 0);
+  vec4 h = texelFetch(e_history, px, 0);
+  imageStore(out_image, px, vec4(mix(h.rgb, e.rgb, blend), e.w));
+}
