@@ -1,10 +1,12 @@
 /* Lumen GI G-buffer: one draw per texture group (world-space vertices, no index buffer).
  * Vertex inputs: pos, nor (world), uv (the corner's UV, zero without a UV map), albedo, emit (per
  * corner, the triangle's material values; with an emission texture emit is the strength).
- * Push constants: view_proj, use_albedo_tex, use_emit_tex. Samplers: albedo_tex, emit_tex (RGBA32F,
- * row 0 = v 0), read with texelFetch and filtered here: bilinear, texel centres at (i + 0.5) / size,
- * wrapping (repeat), exactly as lumen_addon.materials.sample_texture. The sampler state cannot be
- * set from Python in Blender 5.0 (GPUTexture has no filter / extend mode), so no hardware filtering.
+ * Push constants: view_proj, use_albedo_tex, use_emit_tex, albedo_base_h, emit_base_h (the base
+ * level's height). Samplers: albedo_tex, emit_tex (RGBA32F: gbuffer.mip_chain, the levels stacked
+ * in rows, row 0 = v 0), read with texelFetch and filtered here: trilinear between the two mip
+ * levels of the pixel's UV footprint, each bilinear with texel centres at (i + 0.5) / size and
+ * wrapping (repeat); at level 0 exactly lumen_addon.materials.sample_texture. The sampler state
+ * cannot be set from Python in Blender 5.0 (GPUTexture has no filter / extend mode, no mipmaps).
  * Outputs (colour attachments 0..3, RGBA32F):
  *   out_position: world position xyz, w = 1 where a surface was drawn (0: background)
  *   out_normal:   world normal xyz (interpolated, normalised), w = 1
@@ -27,18 +29,49 @@ ivec2 wrap_texel(ivec2 i, ivec2 size)
   return ((i % size) + size) % size;
 }
 
-vec3 sample_bilinear(sampler2D tex, vec2 uv)
+/* Bilinear in one mip level: `size` texels at row offset `y0` of the stacked chain. */
+vec3 sample_level(sampler2D tex, vec2 uv, ivec2 size, int y0)
 {
-  ivec2 size = textureSize(tex, 0);
   vec2 x = uv * vec2(size) - 0.5;
   vec2 x0 = floor(x);
   vec2 f = x - x0;
   ivec2 i0 = ivec2(x0);
-  vec3 c00 = texelFetch(tex, wrap_texel(i0, size), 0).rgb;
-  vec3 c10 = texelFetch(tex, wrap_texel(i0 + ivec2(1, 0), size), 0).rgb;
-  vec3 c01 = texelFetch(tex, wrap_texel(i0 + ivec2(0, 1), size), 0).rgb;
-  vec3 c11 = texelFetch(tex, wrap_texel(i0 + ivec2(1, 1), size), 0).rgb;
+  ivec2 o = ivec2(0, y0);
+  vec3 c00 = texelFetch(tex, o + wrap_texel(i0, size), 0).rgb;
+  vec3 c10 = texelFetch(tex, o + wrap_texel(i0 + ivec2(1, 0), size), 0).rgb;
+  vec3 c01 = texelFetch(tex, o + wrap_texel(i0 + ivec2(0, 1), size), 0).rgb;
+  vec3 c11 = texelFetch(tex, o + wrap_texel(i0 + ivec2(1, 1), size), 0).rgb;
   return mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
+}
+
+/* Trilinear over the stacked mip chain: the level from the UV footprint of this pixel (the
+ * longer of the two screen-axis derivatives, in base texels), as hardware mipmapping does. */
+vec3 sample_mipmapped(sampler2D tex, vec2 uv, int base_h)
+{
+  int w = textureSize(tex, 0).x;
+  ivec2 base = ivec2(w, base_h);
+  vec2 dx = dFdx(uv) * vec2(base);
+  vec2 dy = dFdy(uv) * vec2(base);
+  float lod = max(0.5 * log2(max(max(dot(dx, dx), dot(dy, dy)), 1e-12)), 0.0);
+  int top = 0;
+  for (int m = max(w, base_h); m > 1; m >>= 1) {
+    top++;
+  }
+  lod = min(lod, float(top));
+  int l0 = int(floor(lod));
+  int l1 = min(l0 + 1, top);
+  int y = 0;
+  ivec2 s = base;
+  for (int k = 0; k < l0; k++) {
+    y += s.y;
+    s = max(s / 2, ivec2(1));
+  }
+  vec3 a = sample_level(tex, uv, s, y);
+  if (l1 == l0 || lod == float(l0)) {
+    return a;
+  }
+  vec3 b = sample_level(tex, uv, max(s / 2, ivec2(1)), y + s.y);
+  return mix(a, b, lod - float(l0));
 }
 
 void main()
@@ -47,8 +80,8 @@ void main()
   vec3 n = v_nor;
   float len = length(n);
   out_normal = vec4(len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0), 1.0);
-  vec3 albedo = use_albedo_tex != 0 ? sample_bilinear(albedo_tex, v_uv) : v_albedo;
-  vec3 emit = use_emit_tex != 0 ? sample_bilinear(emit_tex, v_uv) * v_emit : v_emit;
+  vec3 albedo = use_albedo_tex != 0 ? sample_mipmapped(albedo_tex, v_uv, albedo_base_h) : v_albedo;
+  vec3 emit = use_emit_tex != 0 ? sample_mipmapped(emit_tex, v_uv, emit_base_h) * v_emit : v_emit;
   out_albedo = vec4(albedo, 1.0);
   out_emission = vec4(emit, 1.0);
 }

@@ -81,6 +81,12 @@ c = (np.arange({SIZE}) + 0.5) / {SIZE}
 u, v = np.meshgrid(c, c)
 ref = sample_texture(tex, np.stack([u.ravel(), v.ravel()], 1)).reshape({SIZE}, {SIZE}, 3)
 np.save("reference.npy", ref)
+# minified: UVs x 32, so a pixel covers 8 x 8 texels (2 x 2 checker squares)
+for d in plane.data.uv_layers.active.data:
+    d.uv = (d.uv[0] * 32.0, d.uv[1] * 32.0)
+scene.render.filepath = str(Path("lumen_far.exr").resolve())
+bpy.ops.render.render(write_still=True)
+assert "error" not in engine.LAST_RENDER, engine.LAST_RENDER.get("error")
 emit(bake_seconds=bake_seconds, render_seconds=render_seconds, draws=R["gbuffer_draws"],
      texture_uploads=R["texture_uploads"], gbuffer_seconds=R["gbuffer_seconds"],
      texture_shape=list(tex.shape))
@@ -101,7 +107,8 @@ def render(tmp_path_factory):
     albedo = read_pass(tmp / "lumen.exr", "Diffuse Color")
     albedo = albedo[::-1]          # OIIO rows are top first; G-buffer row 0 is the bottom
     print(f"run {time.perf_counter() - start:.1f} s; {run.result}")
-    return albedo, np.load(tmp / "reference.npy"), run.result
+    far = read_pass(tmp / "lumen_far.exr", "Diffuse Color")
+    return albedo, np.load(tmp / "reference.npy"), run.result, far
 
 
 def inner_mask():
@@ -112,7 +119,7 @@ def inner_mask():
 
 
 def test_albedo_is_the_checker(render):
-    albedo, _, result = render
+    albedo, _, result, _ = render
     expected = [srgb_to_linear(np.round(np.asarray(c) * 255) / 255) for c in COLOURS]
     mask = inner_mask()
     c = (np.arange(SIZE) + 0.5) / SIZE * TEX // SQUARE
@@ -128,9 +135,20 @@ def test_albedo_is_the_checker(render):
 
 
 def test_albedo_matches_sample_texture(render):
-    albedo, ref, _ = render
+    albedo, ref, _, _ = render
     err = np.abs(albedo - ref)
     print(f"max |ours - sample_texture| {err.max():.6f} over {SIZE}x{SIZE} px, "
           f"mean {err.mean():.7f}")
     assert err[inner_mask()].max() <= 2 / 255
     assert np.mean(err.max(axis=-1) <= 2 / 255) >= 0.99
+
+
+def test_a_minified_texture_is_its_mean_not_moire(render):
+    """UVs x 32: each pixel covers 8 x 8 texels, two squares of each colour: mip level 3 of the
+    chain (gbuffer.mip_chain) gives the mean of the two colours at every pixel. One sample of
+    level 0 per pixel (before) gave one of the two colours at random: moire."""
+    far = render[3]
+    mean = np.mean([srgb_to_linear(np.round(np.asarray(c) * 255) / 255) for c in COLOURS], axis=0)
+    err = np.abs(far - mean) / mean
+    print(f"minified: mean {far.reshape(-1, 3).mean(axis=0)}, expected {mean}, max rel {err.max():.4f}")
+    assert err.max() < 0.03
