@@ -69,6 +69,9 @@ STEPS_FULL_SCALE = 128.0                    # STEPS heat map: red at this many s
 
 # GPU bytes per resource of the last frame, by scene name (the N-panel reads it).
 MEMORY = {}
+# Objects added or edited since the bake, by scene name, as the last frame found them (the
+# N-panel reads it; lumen_addon/staleness.py).
+STALE = {}
 # What the last view_update saw in depsgraph.updates (flags) and how often it ran.
 LAST_VIEW_UPDATE = {}
 _DISK_BAKES = {}                            # folder -> (mtime, bake): the viewport reads once
@@ -149,9 +152,10 @@ def debug_view(scene) -> str:
     return view
 
 
-def draw_message(text: str, width: int, height: int):
-    """A line of text in the viewport's top-left corner (no bake, a failed frame): the viewport
-    must say why it shows nothing. Long messages are cut to the region's width."""
+def draw_message(text: str, width: int, height: int, line: int = 0):
+    """A line of text in the viewport's top-left corner (no bake, a failed frame, objects changed
+    since the bake), `line` lines down: the viewport must say why it shows nothing or what it
+    shows wrong. Long messages are cut to the region's width."""
     import blf
 
     font = 0
@@ -159,7 +163,7 @@ def draw_message(text: str, width: int, height: int):
     blf.color(font, 1.0, 1.0, 1.0, 1.0)
     limit = max(int(width / 7), 16)
     text = text if len(text) <= limit else text[:limit - 1] + "…"
-    blf.position(font, 12, max(height - 24, 4), 0)
+    blf.position(font, 12, max(height - 24 - 18 * line, 4), 0)
     blf.draw(font, text)
 
 
@@ -196,9 +200,10 @@ def gpu_backend() -> str:
 
 
 def mesh_matrices(depsgraph) -> dict:
-    """{object name: world 4x4} of the evaluated mesh objects (the trace views' placement)."""
-    return {ob.original.name: np.array(ob.matrix_world, np.float64)
-            for ob in depsgraph.objects if ob.type == 'MESH'}
+    """{instance name: world 4x4} of the visible mesh instances (the trace views' placement;
+    extract_scene's names, so an instance the scene no longer has leaves these views too)."""
+    from ..operators.extract import instance_matrices
+    return instance_matrices(depsgraph)
 
 
 def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
@@ -208,7 +213,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     the passes. Returns a Frame: the passes as GPU textures (nothing is read back here; F12
     reads the passes it writes, the viewport draws Combined), or `shown` (numpy) for a debug
     view. Fills LAST_RENDER with the frame's numbers (and images only when KEEP_IMAGES)."""
-    from ..operators.extract import extract_scene
+    from ..lumen_addon import staleness
+    from ..operators.extract import extract_scene, render_only_geometry
     from ..operators.lights import light_table
     from ..operators.world_capture import world_light
     from . import composite, compute, direct_light, gbuffer, gi, gi_methods, gi_settings
@@ -217,12 +223,17 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     bake, source = scene_bake(scene)
     sky_maps, sky_notes = world_light(scene)     # remembered per world: a capture only on change
     lights = np.concatenate([light_table(depsgraph), sky_maps.sun_rows()])
+    stale, t_stale = None, time.perf_counter()
     if view in TRACE_VIEWS:
         objects, warnings = None, []
         matrices = mesh_matrices(depsgraph)
     else:
         objects, warnings = extract_scene(depsgraph)
         matrices = {ob.name: ob.matrix_world for ob in objects}
+        t_stale = time.perf_counter()
+        stale = STALE[scene.name] = state.stale.changed(bake, objects,
+                                                        render_only_geometry(depsgraph))
+    stale_seconds = time.perf_counter() - t_stale
     t1 = time.perf_counter()
     changes = state.sync(bake, matrices, lights)
     if state.sky.update(sky_maps):
@@ -234,6 +245,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        bricks=res.packed.bricks,
                        atlas_size=list(res.packed.atlas_size), upload_seconds=res.upload_seconds,
                        extract_seconds=t1 - t0, sync_seconds=t2 - t1)
+    LAST_RENDER.update(stale=list(stale or []), gone=list(state.gone),
+                       stale_hashed=state.stale.hashed, stale_seconds=stale_seconds)
     if view in TRACE_VIEWS:
         inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
         if view == "HYBRID":
@@ -300,6 +313,9 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
         gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, **gi_info)
+    if stale:
+        LAST_RENDER["notes"].append(staleness.summary(stale) + ": drawn, but their light and "
+                                    "shadows are the bake's; press Bake")
     result = Frame(textures, None, width, height)
     if KEEP_IMAGES or view != "COMBINED":
         images = dict(position=result.read(g["position"]), normal=result.read(g["normal"]),
@@ -468,6 +484,7 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         """Record what the depsgraph says changed; the next view_draw's frame() syncs the scene
         state, which re-uploads only the resources those changes touch."""
         flags = set()
+        edited, materials, images = set(), set(), False   # for the staleness check's re-hashing
         for u in depsgraph.updates:
             ident = u.id
             if isinstance(ident, bpy.types.Object):
@@ -475,12 +492,20 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
                     flags.add("light" if ident.type == 'LIGHT' else "transform")
                 if u.is_updated_geometry:
                     flags.add("geometry")
+                    edited.add(ident.name)    # (not shading: selection is shading too)
             elif isinstance(ident, bpy.types.Light):
                 flags.add("light")
             elif isinstance(ident, (bpy.types.Mesh, bpy.types.Material)):
                 flags.add("geometry")
+                if isinstance(ident, bpy.types.Material):
+                    materials.add(ident.name)
             elif isinstance(ident, bpy.types.World):
                 flags.add("world")
+            elif isinstance(ident, bpy.types.Image):
+                images = True
+        if getattr(self, "_state", None) is None:
+            self._state = SceneState()
+        self._state.stale.mark(edited, materials, images)
         LAST_VIEW_UPDATE["flags"] = sorted(flags)
         LAST_VIEW_UPDATE["count"] = LAST_VIEW_UPDATE.get("count", 0) + 1
         if flags:
@@ -532,8 +557,14 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         self.unbind_display_space_shader()
         gpu.state.blend_set('NONE')
         progress = LAST_RENDER.get("gi_progress")
+        line = 0
         if progress is not None and progress[0] < progress[1]:
             draw_message(f"Lumen GI: refining {progress[0]}/{progress[1]}", w, h)
+            line = 1
+        stale = LAST_RENDER.get("stale")
+        if stale:
+            draw_message(f"Lumen GI: {len(stale)} object{'s' if len(stale) != 1 else ''} changed "
+                         f"since the bake: press Bake", w, h, line)
 
 
 def register():

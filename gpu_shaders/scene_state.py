@@ -5,7 +5,9 @@ engine instance keeps one for its lifetime, an F12 render makes its own, as Cycl
     bake         the scene's bake (lumen_addon.bake.SceneBake): which meshes (by content hash)
                  are baked, and the instances (name, mesh hash, matrix at bake time)
     matrices     {instance name: world 4x4} of the current scene (extract_scene names); an
-                 instance whose name is absent keeps the matrix it had in the bake
+                 instance whose name is absent (deleted, hidden, in an excluded collection) is
+                 parked as a scale-0 one is: it leaves the SDF scene at once, and its row keeps
+                 its index (the surface cache's rows stay valid); it comes back if it returns
     lights       operators.lights.light_table rows (float32 [n, 16])
 and re-uploads only what changed:
     atlas + indirection (+ objects)   the set of baked mesh hashes changed (a re-bake that changed
@@ -24,17 +26,25 @@ import numpy as np
 from .packing import instance_row, singular
 from .sky_light import SkyLight
 
+try:                                   # inside the extension package
+    from ..lumen_addon.staleness import StaleCheck
+except ImportError:                    # gpu_shaders imported on its own (tests, scripts)
+    from lumen_addon.staleness import StaleCheck
+
 RESOURCES = ("atlas", "indirection", "objects", "lights", "cards")
+
+GONE = np.zeros((4, 4))    # the matrix of an instance the scene no longer has: a parked row
+
 
 def instance_table(bake, matrices: dict):
     """(names, mesh hashes, float64 [n, 4, 4] world matrices) of the bake's instances, placed
-    where the current scene has them."""
+    where the current scene has them; those it does not have get GONE (packing parks them)."""
     names, keys, mats = [], [], []
     for inst in bake.instances:
         names.append(inst.name)
         keys.append(inst.mesh)
         m = matrices.get(inst.name)
-        mats.append(np.asarray(inst.matrix_world if m is None else m, np.float64))
+        mats.append(np.asarray(GONE if m is None else m, np.float64))
     arr = np.stack(mats) if mats else np.zeros((0, 4, 4))
     return names, keys, arr
 
@@ -56,6 +66,8 @@ class SceneState:
         self.names = None            # instance names of the object table on the GPU
         self.matrices = None         # their matrices
         self.left_out = []           # instances with a singular transform (parked rows)
+        self.gone = []               # baked instances the scene no longer has (parked rows)
+        self.stale = StaleCheck()    # objects added or edited since the bake (engine.frame)
         self.lights = None           # light rows last synced
         self.resources = None        # resources.SceneResources (atlas, indirection, objects)
         self.light_texture = None    # RGBA32F, 4 texels per light row (at least one row)
@@ -104,7 +116,8 @@ class SceneState:
         self.names, self.matrices, self.bake = names, mats, bake
         self.mesh_keys = frozenset(keys)
         # instances whose transform cannot be inverted (scale 0): parked, named in the notes
-        self.left_out = [n for n, m in zip(names, mats) if singular(m)]
+        self.gone = [n for n in names if n not in matrices]
+        self.left_out = [n for n, m in zip(names, mats) if n in matrices and singular(m)]
         for name in changes:
             self.uploads[name] += 1
         self.syncs += 1

@@ -408,18 +408,15 @@ def _visible(inst, view_layer):
     return inst.show_self and inst.object.original.visible_get(view_layer=view_layer)
 
 
-def extract_scene(depsgraph, view_layer=None):
-    """(ObjectInputs of every visible mesh instance, [(object name, warning)]).
+def mesh_instances(depsgraph, view_layer=None):
+    """(depsgraph instance, its name) of every visible mesh instance, in depsgraph order.
 
     Names are the object's name, or `instancer/source.N` for instances, so errors and stats
-    can point at what the user sees in the outliner. World matrices are copied.
+    can point at what the user sees in the outliner. The bake's instances and every frame's
+    placement use these names: an instance whose name the scene no longer yields has left it.
     """
     view_layer = view_layer or depsgraph.view_layer
-    ex = Extractor()
-    cache = {}          # (evaluated mesh pointer, material pointers) -> MeshData
-    geometry = {}       # evaluated mesh pointer -> shared geometry arrays
     counts = {}         # instancer name -> instances seen
-    out = []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type != 'MESH' or not _visible(inst, view_layer):
@@ -429,9 +426,63 @@ def extract_scene(depsgraph, view_layer=None):
             parent = inst.parent.original.name if inst.parent is not None else "?"
             label = source.name if source.name != parent else (obj.data.name if obj.data else "mesh")
             n = counts[parent] = counts.get(parent, 0) + 1
-            name = f"{parent}/{label}.{n:03d}"
+            yield inst, f"{parent}/{label}.{n:03d}"
         else:
-            name = source.name
+            yield inst, source.name
+
+
+def instance_matrices(depsgraph, view_layer=None) -> dict:
+    """{name: world 4x4} of every visible mesh instance (extract_scene's names), without reading
+    any mesh: the trace debug views place the bake with it."""
+    return {name: np.array(inst.matrix_world, np.float64)
+            for inst, name in mesh_instances(depsgraph, view_layer)}
+
+
+def _is_viewport_node(tree, seen) -> bool:
+    if tree is None or tree.as_pointer() in seen:
+        return False
+    seen.add(tree.as_pointer())
+    return any(node.bl_idname == "GeometryNodeIsViewport"
+               or (node.type == 'GROUP' and _is_viewport_node(node.node_tree, seen))
+               for node in tree.nodes)
+
+
+def renders_differently(obj) -> bool:
+    """Whether an object's modifiers evaluate differently in F12 than in the viewport (what the
+    bake sees): one shown in only one of them, subdivision or multires render levels, or
+    geometry nodes that ask Is Viewport."""
+    for mod in getattr(obj, "modifiers", ()):
+        if mod.show_viewport != mod.show_render:
+            return True
+        if mod.type in ('SUBSURF', 'MULTIRES') and mod.levels != mod.render_levels:
+            return True
+        if mod.type == 'NODES' and _is_viewport_node(mod.node_group, set()):
+            return True
+    return False
+
+
+def render_only_geometry(depsgraph) -> set:
+    """Names of the mesh objects whose F12 geometry is not what the bake saw (a render
+    depsgraph evaluates modifiers at render settings; the bake, a viewport one): staleness
+    cannot judge their content there. Empty for a viewport depsgraph."""
+    if getattr(depsgraph, "mode", "VIEWPORT") != 'RENDER':
+        return set()
+    return {ob.original.name for ob in depsgraph.objects
+            if ob.type == 'MESH' and renders_differently(ob.original)}
+
+
+def extract_scene(depsgraph, view_layer=None):
+    """(ObjectInputs of every visible mesh instance, [(object name, warning)]).
+
+    Names are mesh_instances' (the object's, or `instancer/source.N`). World matrices are copied.
+    """
+    ex = Extractor()
+    cache = {}          # (evaluated mesh pointer, material pointers) -> MeshData
+    geometry = {}       # evaluated mesh pointer -> shared geometry arrays
+    out = []
+    for inst, name in mesh_instances(depsgraph, view_layer):
+        obj = inst.object
+        source = obj.original
         mesh_key = obj.data.as_pointer() if obj.data is not None else ("object", obj.as_pointer())
         key = (mesh_key, tuple(s.material.as_pointer() if s.material else 0
                                for s in obj.material_slots))

@@ -57,6 +57,8 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
             row.label(text=value)
         if s.last_status:
             box.label(text=s.last_status)
+        for i, text in enumerate(stale_lines(scene)):
+            box.label(text=text, icon='ERROR' if i == 0 else 'BLANK1')
 
         if scene.render.engine == 'LUMEN_GI':
             box = layout.box()
@@ -67,6 +69,19 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
 
         layout.operator("lumen.export_cache", icon='EXPORT')
         layout.operator("lumen.open_atlas", icon='IMAGE_DATA')
+
+
+def stale_lines(scene, limit: int = 5) -> list:
+    """The panel's lines on objects added or edited since the bake, as the Lumen GI engine's
+    last frame of this scene found them (engine.STALE); [] when none or not rendered yet."""
+    from ..gpu_shaders.engine import STALE
+
+    names = list(STALE.get(scene.name) or [])
+    if not names:
+        return []
+    head = f"{len(names)} object{'s' if len(names) != 1 else ''} changed since the bake:"
+    more = [f"and {len(names) - limit} more"] if len(names) > limit else []
+    return [head] + names[:limit] + more
 
 
 def draw_gi_settings(layout, s, render=None):

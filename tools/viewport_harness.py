@@ -5,7 +5,10 @@ background mode, but never calls `view_draw` without a window. So `run()` regist
 the engine whose `render()` binds a GPUOffScreen of the region's size, sets the region's pixel
 projection (what Blender does before a viewport's `view_draw`) and calls the engine's own
 `view_draw` with a duck-typed context: region (width, height), region_data (perspective_matrix,
-view_matrix of the scene camera), space_data (clip_end) and preferences.
+view_matrix of the scene camera), space_data (clip_end) and preferences. After `on_redraw`
+edits the scene, the depsgraph is re-evaluated and the engine's `view_update` sees its updates
+(from a depsgraph_update_post handler, while depsgraph.updates still lists them), as Blender
+calls view_update before the next view_draw.
 
     result = run(scene, LumenGIRenderEngine, 640, 360, redraws=4, on_redraw=callback)
     result["drawn"]     float32 [h, w, 4]: the offscreen after the last redraw (display space)
@@ -66,17 +69,27 @@ def _draw(engine, depsgraph, width, height, redraws, on_redraw):
                                (0.0, 0.0, -1.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
     off = gpu.types.GPUOffScreen(width, height, format='RGBA16F')
     seconds, after = [], []
-    for i in range(redraws):
-        with off.bind(), gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
-            gpu.state.active_framebuffer_get().clear(color=(0.0, 0.0, 0.0, 0.0))
-            gpu.matrix.load_identity()
-            gpu.matrix.load_projection_matrix(pixels)
-            t = time.perf_counter()
-            engine.view_draw(ctx, depsgraph)
-            seconds.append(time.perf_counter() - t)
-        after.append(on_redraw(i) if on_redraw else None)
-        if on_redraw:
-            depsgraph.update()    # as the viewport re-evaluates what on_redraw edited
+
+    def updated(_scene, dg):
+        if dg.as_pointer() == depsgraph.as_pointer():
+            engine.view_update(ctx, dg)
+
+    bpy.app.handlers.depsgraph_update_post.append(updated)
+    try:
+        depsgraph.update()            # Blender calls view_update before the first view_draw too
+        for i in range(redraws):
+            with off.bind(), gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+                gpu.state.active_framebuffer_get().clear(color=(0.0, 0.0, 0.0, 0.0))
+                gpu.matrix.load_identity()
+                gpu.matrix.load_projection_matrix(pixels)
+                t = time.perf_counter()
+                engine.view_draw(ctx, depsgraph)
+                seconds.append(time.perf_counter() - t)
+            after.append(on_redraw(i) if on_redraw else None)
+            if on_redraw:
+                depsgraph.update()    # as the viewport re-evaluates what on_redraw edited
+    finally:
+        bpy.app.handlers.depsgraph_update_post.remove(updated)
 
     # buffer protocol in memory order (see gpu_shaders.resources.read_texture)
     drawn = np.asarray(off.texture_color.read()).ravel(order="K").astype(np.float32)
