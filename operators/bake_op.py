@@ -17,7 +17,8 @@ import bpy
 
 from ..lumen_addon.bake import BakeCancelled, BakeSettings, SceneBakeError, bake_scene
 from ..lumen_addon.cache import SCENE_TOKEN, CacheError, folder_name, read_cache, write_cache
-from .extract import extract_scene
+from ..lumen_addon.estimate import MeshSize, estimate
+from .extract import extract_scene, mesh_instances
 from .properties import DEFAULT_CACHE_DIR, INT_MAX
 
 # Last successful bake per scene name: reused by the next bake (unchanged meshes are not baked
@@ -39,6 +40,49 @@ def settings_from(scene) -> BakeSettings:
     s = scene.lumen
     return BakeSettings(voxel_density=float(s.voxel_density), max_resolution=int(s.max_resolution),
                         texel_density=float(s.texel_density), texel_budget=int(s.texel_budget))
+
+
+def mesh_sizes(depsgraph) -> list:
+    """MeshSize of every unique evaluated mesh the bake would extract, from counts and bounds
+    alone (no vertex is read): cheap enough for the N-panel."""
+    import numpy as np
+
+    sizes = {}
+    for inst, _name in mesh_instances(depsgraph):
+        obj = inst.object
+        mesh = obj.data
+        key = mesh.as_pointer() if mesh is not None else obj.as_pointer()
+        scale = float(np.linalg.norm(np.array(inst.matrix_world)[:3, :3], axis=0).max())
+        old = sizes.get(key)
+        if old is not None:
+            sizes[key] = MeshSize(old.triangles, old.extent, old.resolution_scale,
+                                  max(old.world_scale, scale), old.instances + 1)
+            continue
+        corners = np.array([c[:] for c in obj.bound_box], np.float64)
+        props = getattr(obj.original, "lumen", None)
+        sizes[key] = MeshSize(len(mesh.loop_triangles) if mesh is not None else 0,
+                              tuple(corners.max(0) - corners.min(0)),
+                              float(props.resolution_scale) if props is not None else 1.0, scale)
+    return list(sizes.values())
+
+
+def bake_estimate(scene, depsgraph):
+    """lumen_addon.estimate.Estimate of baking the scene from scratch with its settings."""
+    return estimate(mesh_sizes(depsgraph), settings_from(scene))
+
+
+_ESTIMATES = {}     # scene name -> (time, settings, Estimate): the N-panel redraws often
+
+
+def cached_estimate(scene, depsgraph, max_age: float = 1.0):
+    """bake_estimate, recomputed at most every `max_age` seconds or when a setting changes."""
+    import time
+
+    now, key = time.monotonic(), settings_from(scene)
+    hit = _ESTIMATES.get(scene.name)
+    if hit is None or hit[1] != key or now - hit[0] > max_age:
+        hit = _ESTIMATES[scene.name] = (now, key, bake_estimate(scene, depsgraph))
+    return hit[2]
 
 
 def resolve_folder(path: str, default_name: str = "lumen_cache") -> Path:
@@ -165,6 +209,11 @@ class LUMEN_OT_bake(bpy.types.Operator):
     bl_label = "Bake Lumen GI"
     bl_options = {'REGISTER'}
 
+    confirmed: bpy.props.BoolProperty(
+        name="Confirmed", description="The user accepted a large bake's estimate (set by the "
+        "confirmation dialog; scripts need not)", default=False,
+        options={'HIDDEN', 'SKIP_SAVE'})
+
     @classmethod
     def poll(cls, context):
         return context.scene is not None
@@ -239,9 +288,21 @@ class LUMEN_OT_bake(bpy.types.Operator):
         try:
             return self._execute(context)
         except Exception as exc:
+            self._abandon(context)
             return self._unexpected(exc)
 
     def _execute(self, context):
+        if self.confirmed and not bpy.app.background and context.window is not None:
+            # the user accepted the large bake's estimate: bake in the background as invoke does
+            self.confirmed = False
+            return self._invoke(context)
+        try:
+            est = bake_estimate(context.scene, context.evaluated_depsgraph_get())
+        except Exception:                 # an estimate must never stop a bake
+            est = None
+        if est is not None and est.large:
+            self.report({'WARNING'}, f"Large bake: {est.text()} estimated "
+                        f"({est.triangles:,} triangles)")
         job = self._start(context)
         if job is None:
             return {'CANCELLED'}
@@ -253,6 +314,16 @@ class LUMEN_OT_bake(bpy.types.Operator):
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
             return self.execute(context)
+        try:
+            est = bake_estimate(context.scene, context.evaluated_depsgraph_get())
+        except Exception:                 # an estimate must never stop a bake
+            est = None
+        if est is not None and est.large and not self.confirmed:
+            self.confirmed = True         # execute() then starts the background bake
+            return context.window_manager.invoke_confirm(
+                self, event, title="Large Lumen GI bake",
+                message=f"This bake needs {est.text()} ({est.triangles:,} triangles). Bake?",
+                confirm_text="Bake")
         try:
             return self._invoke(context)
         except Exception as exc:
