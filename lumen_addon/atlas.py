@@ -1,10 +1,11 @@
 """The surface-cache atlas: every card of every mesh packed into one set of layer images.
 
 Packing is a bottom-left skyline over the cards' rectangles, tallest first, never rotated (a card
-keeps u along x and v along y, so the shaders need no per-card orientation). Each card sits inside
-a border of PADDING texels that repeat its edge texels, so bilinear filtering at a card's edge
-reads that card and nothing else. (xatlas was measured for this and not used: its Python binding
-rescales UV charts given with add_uv_mesh, and transposes 3D charts given with add_mesh.)
+keeps u along x and v along y, so the shaders need no per-card orientation), at the best of
+several atlas widths. Each card sits inside a border of PADDING texels that repeat its edge
+texels, so bilinear filtering at a card's edge reads that card and nothing else. (xatlas packs
+the same rectangles exactly when each is its own UV chart, but into atlases 3-30% larger on the
+demo and benchmark scenes, and more slowly: bench/atlas_packing.py.)
 
 Texel (i, j) of a card (column i along u, row j along v) is atlas pixel [y + j, x + i] of its
 `rect` = (x, y, w, h); row 0 of the arrays is the first scanline of the image files.
@@ -28,20 +29,43 @@ class Atlas:
     table: list = field(default_factory=list)   # per card: dict, see card_entry()
 
 
+WIDTH_STEP = 16          # atlas widths tried are multiples of this
+MAX_WIDTHS = 16          # most widths tried (fewer for thousands of cards: see pack)
+
+
 def pack(sizes, padding: int = PADDING):
     """Positions (N, 2) of each (w, h) rectangle's first texel, and the atlas (width, height).
 
     Every rectangle is reserved with `padding` texels on each side; no two reservations overlap.
+    The skyline is run for several atlas widths (0.7 to 1.6 x the side of a square of the same
+    area) and the smallest atlas kept: one fixed width left 30-40% of some scenes' atlases empty
+    (bench/atlas_packing.py).
     """
     sizes = np.asarray(sizes, np.int64).reshape(-1, 2)
     if not len(sizes):
         return np.zeros((0, 2), np.int64), (0, 0)
     outer = sizes + 2 * padding
-    area = float((outer[:, 0] * outer[:, 1]).sum())
-    width = int(max(outer[:, 0].max(), -(-int(np.ceil(np.sqrt(area * 1.1))) // 64) * 64))
+    side = float(np.sqrt(float((outer[:, 0] * outer[:, 1]).sum())))
+    lo = max(int(outer[:, 0].max()), int(0.7 * side))
+    steps = np.arange(-(-lo // WIDTH_STEP), -(-max(lo, int(1.6 * side)) // WIDTH_STEP) + 1)
+    count = int(np.clip(6000 // len(sizes), 3, MAX_WIDTHS))   # each width is a full packing
+    if len(steps) > count:
+        steps = np.unique(steps[np.linspace(0, len(steps) - 1, count).round().astype(int)])
+    best = None
+    for width in steps * WIDTH_STEP:                       # a loop over widths, not texels
+        pos, height = _skyline(outer, max(int(width), int(outer[:, 0].max())))
+        size = (int(max(width, outer[:, 0].max())), -(-height // 4) * 4)
+        if best is None or (size[0] * size[1], abs(size[0] - size[1])) < best[0]:
+            best = ((size[0] * size[1], abs(size[0] - size[1])), pos, size)
+    return best[1] + padding, best[2]
+
+
+def _skyline(outer, width):
+    """Bottom-left skyline of the reserved rectangles `outer` in an atlas `width` wide, tallest
+    first, then widest: (first texel of each reservation, height used)."""
     order = np.lexsort((-outer[:, 0], -outer[:, 1]))       # tallest first, then widest
     sky = [[0, width, 0]]                                  # skyline segments: x, width, top y
-    pos = np.zeros_like(sizes)
+    pos = np.zeros_like(outer)
     for k in order:                                        # a loop over cards, not texels
         w, h = int(outer[k, 0]), int(outer[k, 1])
         best = None
@@ -56,10 +80,9 @@ def pack(sizes, padding: int = PADDING):
             if best is None or (y, x) < best[:2]:
                 best = (y, x, i)
         y, x, i = best
-        pos[k] = (x + padding, y + padding)
+        pos[k] = (x, y)
         _raise_skyline(sky, i, x, w, y + h)
-    height = max(seg[2] for seg in sky)
-    return pos, (width, -(-height // 4) * 4)
+    return pos, max(seg[2] for seg in sky)
 
 
 def _raise_skyline(sky, i, x, w, top):
