@@ -53,8 +53,13 @@ float cone_visibility_shell(vec3 p, vec3 n, vec3 dir, float t_max, float k, floa
     float d = sdf_scene(o + dir * t, hv, nearest);
     if (leaving) {
       /* leaving means the field rises by a tenth of the distance travelled or more: the flat
-       * field inside a wall thinner than a voxel does not, so such a wall still occludes */
-      if (d >= last + 0.1 * (t - t_last) && d < (THIN_VOXELS + 0.5) * hv) {
+       * field inside a wall thinner than a voxel does not, so such a wall still occludes.
+       * Within half a voxel of the receiver's own plane the cone is leaving whatever the field
+       * does: a two-sided surface (|d| - half a voxel) midway between two samples reads a flat
+       * 0 over a whole voxel, and that plateau counted as an occluder on the receiver itself
+       * (an imported room's floor, baked two-sided, got no direct light at all). */
+      bool rising = d >= last + 0.1 * (t - t_last) || t * dot(dir, n) < 0.5 * hv;
+      if (rising && d < (THIN_VOXELS + 0.5) * hv) {
         last = d;
         t_last = t;
         t += max(0.5 * d, 0.2 * hv);
