@@ -31,9 +31,15 @@ bpy.ops.wm.read_factory_settings(use_empty=True)
 scene = bpy.context.scene
 v1, f1 = icosphere(0.5, 3)
 v2, f2 = box((0.4, 0.3, 0.5))
-bake = bake_scene([ObjectInput("Ico", v1, f1, matrix((-0.6, 0.0, 0.0))),
-                   ObjectInput("Box", v2, f2, matrix((0.7, 0.2, 0.1), 0.5, 1.25))],
-                  BakeSettings(voxel_density=24.0))
+inputs = [ObjectInput("Ico", v1, f1, matrix((-0.6, 0.0, 0.0))),
+          ObjectInput("Box", v2, f2, matrix((0.7, 0.2, 0.1), 0.5, 1.25))]
+bake = bake_scene(inputs, BakeSettings(voxel_density=24.0))
+for obj in inputs:    # the scene holds the baked objects (an instance it lacks leaves the SDFs)
+    mesh = bpy.data.meshes.new(obj.name)
+    mesh.from_pydata(obj.vertices.tolist(), [], obj.triangles.tolist())
+    ob = bpy.data.objects.new(obj.name, mesh)
+    scene.collection.objects.link(ob)
+    ob.matrix_world = mathutils.Matrix(obj.matrix_world.tolist())
 write_cache("cache", bake)
 scene.lumen.cache_dir = str(__import__("pathlib").Path("cache").resolve())
 cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
