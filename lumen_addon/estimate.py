@@ -9,8 +9,9 @@ it is large). The estimate needs, per unique mesh, its triangle count and local 
     inputs  every mesh's extracted arrays stay in memory for the whole bake
 Coefficients are least-squares fits to real bakes (bench/bake_estimate.py). Seconds are CPU
 seconds of one core (the bake's numpy and Embree work runs on up to all cores, so an idle machine
-takes about this long or less; a busy one longer); bytes are the peak above Blender's own. Meshes the last bake can reuse are not subtracted
-(that needs their content hashes): the estimate is for a bake from scratch.
+takes about this long or less; a busy one longer); bytes are the peak above Blender's own.
+Meshes the last bake can reuse are not subtracted (that needs their content hashes): the
+estimate is for a bake from scratch.
 """
 from __future__ import annotations
 
