@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Optional
 
 import numpy as np
@@ -17,11 +17,11 @@ import numpy as np
 from . import __version__
 from . import cards as cardlib
 from .atlas import Atlas, build_atlas
-from .geometry import MeshError, boundary_loops, clean_mesh, orient_triangles
+from .geometry import MeshError, clean_mesh, orient_triangles
 from .sdf import DEFAULT_MAX_RESOLUTION, BakeCancelled, MeshSDF, bake_mesh_sdf, plan_resolution
 from .sign import INSIDE_FRACTION
 
-ALGORITHM_VERSION = 4   # bump when a change makes old bakes differ from new ones
+ALGORITHM_VERSION = 5   # bump when a change makes old bakes differ from new ones
 SDF_SHARE = 0.7         # of the progress bar; the cards take the rest
 
 
@@ -166,11 +166,6 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         except MeshError as exc:
             problems.append((obj.name, str(exc)))
             continue
-        opening = 0.0 if obj.two_sided else wide_opening(obj.vertices, obj.triangles)
-        if opening:
-            obj = replace(obj, two_sided=True)
-            warnings.append((obj.name, f"open mesh (an opening {opening:.2g} m across): baked as "
-                                       f"two-sided, its faces have no inside"))
         key = mesh_hash(obj, settings)
         if not obj.two_sided and _faces_inward(obj) and _holds_others(obj, m, centres):
             # its orientation may depend on what it holds (scene_points): another key
@@ -242,42 +237,6 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         progress(1.0, "")
     return SceneBake(settings, meshes, instances, time.perf_counter() - start, reused, warnings,
                      cards, atlas)
-
-
-OPEN_SHARE = 0.25     # an opening wider than this share of the mesh's size: the mesh has no inside
-_OPENINGS = {}        # content digest -> opening (m); reused meshes are not welded again
-
-
-def wide_opening(vertices, triangles) -> float:
-    """Diameter (m) of the mesh's widest opening when it is wider than OPEN_SHARE of the mesh's
-    own size, else 0. Such a mesh (a plane, a terrain, a room with a wall missing, an imported
-    OBJ's single-sided walls) has no inside: the sign of its field beyond the faces is
-    arbitrary, and one-sided it left the field near a floor at +half a voxel in patches, where
-    shadow cones then found an occluder on the receiver itself (black speckle). Two-sided
-    (|d| - half a voxel) it is a thin shell, as the lecture has such meshes. Small holes (a
-    scanned mesh's) stay one-sided: the sign flood handles them. Vertices are welded by position
-    first, so a triangle soup of a closed mesh is closed."""
-    v = np.asarray(vertices, np.float64).reshape(-1, 3)
-    t = np.asarray(triangles, np.int64).reshape(-1, 3)
-    digest = hashlib.sha1(v.tobytes() + t.tobytes()).hexdigest()
-    if digest in _OPENINGS:
-        return _OPENINGS[digest]
-    ok = np.isfinite(v).all(axis=1)
-    opening = 0.0
-    if ok.any() and len(t):
-        welded, weld = np.unique(np.where(ok[:, None], v, 0.0) + 0.0, axis=0, return_inverse=True)
-        tw = weld.reshape(-1)[t]
-        tw = tw[(tw[:, 0] != tw[:, 1]) & (tw[:, 1] != tw[:, 2]) & (tw[:, 2] != tw[:, 0])]
-        if len(tw):
-            _, radii = boundary_loops(welded, tw)
-            used = welded[np.unique(tw)]
-            size = 0.5 * float(np.linalg.norm(used.max(axis=0) - used.min(axis=0)))
-            if len(radii) and radii.max() > OPEN_SHARE * size:
-                opening = 2.0 * float(radii.max())
-    if len(_OPENINGS) > 4096:
-        _OPENINGS.clear()
-    _OPENINGS[digest] = opening
-    return opening
 
 
 def _local_bounds(obj):

@@ -33,9 +33,7 @@ def differs(obj, inst, settings, digests=None) -> bool:
     bake's settings. The cards are hashed at the instance's baked scale: scaling an object
     changes its texel density, not what it is."""
     key = mesh_hash(obj, settings)
-    if inst.mesh not in (key, context_key(key)) and (
-            obj.two_sided or mesh_hash(dataclasses.replace(obj, two_sided=True), settings)
-            != inst.mesh):      # (an open mesh is baked two-sided: bake_scene's wide_opening)
+    if inst.mesh not in (key, context_key(key)):
         return True
     placed = dataclasses.replace(obj, matrix_world=inst.matrix_world)
     return cards_hash(placed, inst.mesh, settings, digests) != inst.cards
