@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/quality.py [--size 256] [--scenes cornell,window,thin]
         [--cycles-samples 1024] [--engines cycles_ref,cycles_4spp_oidn,eevee,eevee_rt,
-        eevee_volume,lumen] [--out out/quality] [--quick] [--verbose]
+        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm] [--out out/quality] [--quick] [--verbose]
 
 Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornell` (area light
 in a Cornell box), `window` (a closed room lit by a sun through one window), `thin` (a closed
@@ -25,6 +25,8 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
                       user gets without touching anything; per-object settings too: the roof is
                       not two-sided)
     lumen_high        the same with gi_quality='HIGH', render_frames=16, bounces=3
+    lumen_ssgi        GI Method SSGI (screen-space GI on an HZB, lecture 21), Medium, 8 frames
+    lumen_rsm         GI Method RSM (reflective shadow maps, one bounce), Medium, 8 frames
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -62,7 +64,7 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 import quality_scenes  # noqa: E402
 
 ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
-           "lumen_high")
+           "lumen_high", "lumen_ssgi", "lumen_rsm")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -70,7 +72,13 @@ BLACK = 1e-4                          # luminance under which a Cycles pixel cou
 EPS = 0.01                            # relMSE denominator term
 LUM = np.array([0.2126, 0.7152, 0.0722])
 # lumen: every setting at its default (what a user gets); lumen_high: the High preset
-LUMEN_HIGH_SETTINGS = (("gi_quality", "HIGH"), ("render_frames", 16), ("bounces", 3))
+LUMEN_HIGH_SETTINGS = (("gi_quality", "HIGH"), ("render_frames", 16), ("bounces", 3),
+                       ("gi_method", "LUMEN"))
+# the lecture's other methods on the same G-buffer and direct light (scene.lumen.gi_method)
+LUMEN_SSGI_SETTINGS = (("gi_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
+                       ("gi_method", "SSGI"))
+LUMEN_RSM_SETTINGS = (("gi_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
+                      ("gi_method", "RSM"))
 
 
 # Rendering -------------------------------------------------------------------------------------
@@ -515,7 +523,9 @@ def hidden_drawn(scene, position, share=0.02):
 
 RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "eevee": run_eevee,
            "eevee_rt": run_eevee_rt, "eevee_volume": run_eevee_volume, "lumen": run_lumen,
-           "lumen_high": run_lumen_high}
+           "lumen_high": run_lumen_high,
+           "lumen_ssgi": lambda ctx: run_lumen(ctx, LUMEN_SSGI_SETTINGS),
+           "lumen_rsm": lambda ctx: run_lumen(ctx, LUMEN_RSM_SETTINGS)}
 
 
 # Metrics and images ----------------------------------------------------------------------------
