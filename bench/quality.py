@@ -36,6 +36,8 @@ cycles_ref over all pixels and RGB channels:
     relMSE  mean((x - ref)^2 / (ref^2 + 0.01))
     MAE     mean |x - ref|
     bias    mean lum(x) / mean lum(ref) - 1          (lum: Rec.709 weights)
+    SSIM    mean SSIM (Wang et al. 2004, 11x11 Gaussian window) of the tone-mapped luminance,
+            with the side-by-side images' exposure and tone map
     leak    `thin` only: mean lum(x) over the pixels where Cycles is black (lum < 1e-4) divided
             by mean lum(x) over the lit ones (the rest, background excluded)
 The table is printed and written to <out>/results.json; <out>/<scene>.png shows the engines side
@@ -533,11 +535,39 @@ def lum(img):
     return img[..., :3] @ LUM
 
 
+def _gauss_blur(img, sigma=1.5, radius=5):
+    """Separable Gaussian (11 taps, sigma 1.5: Wang et al.'s SSIM window), edges clamped."""
+    k = np.exp(-0.5 * (np.arange(-radius, radius + 1) / sigma) ** 2)
+    k /= k.sum()
+    for axis in (0, 1):
+        pad = [(0, 0)] * img.ndim
+        pad[axis] = (radius, radius)
+        p = np.pad(img, pad, mode="edge")
+        img = sum(w * np.take(p, np.arange(i, i + img.shape[axis]), axis=axis)
+                  for i, w in enumerate(k))
+    return img
+
+
+def ssim(x, ref) -> float:
+    """Mean SSIM of the tone-mapped luminance (the side-by-side's exposure and Reinhard + sRGB,
+    so it weighs what a viewer sees), Wang et al. 2004 with an 11x11 Gaussian window."""
+    exposure = 0.5 / max(float(lum(ref).mean()), 1e-6)
+    a, b = lum(tone_map(x, exposure)), lum(tone_map(ref, exposure))
+    c1, c2 = 0.01 ** 2, 0.03 ** 2
+    ma, mb = _gauss_blur(a), _gauss_blur(b)
+    va = _gauss_blur(a * a) - ma * ma
+    vb = _gauss_blur(b * b) - mb * mb
+    cov = _gauss_blur(a * b) - ma * mb
+    s = ((2 * ma * mb + c1) * (2 * cov + c2)) / ((ma * ma + mb * mb + c1) * (va + vb + c2))
+    return float(s.mean())
+
+
 def metrics(x, ref, masks=None) -> dict:
     x, ref = x.astype(np.float64), ref.astype(np.float64)
     m = dict(rel_mse=float(np.mean((x - ref) ** 2 / (ref ** 2 + EPS))),
              mae=float(np.mean(np.abs(x - ref))),
-             bias=float(lum(x).mean() / max(lum(ref).mean(), 1e-12) - 1.0))
+             bias=float(lum(x).mean() / max(lum(ref).mean(), 1e-12) - 1.0),
+             ssim=ssim(x, ref))
     if masks is not None:
         black, lit = masks
         lx = lum(x)
@@ -598,7 +628,7 @@ def fmt(v, spec, none="-"):
 
 def print_table(rows):
     head = (f"{'scene':8s} {'engine':17s} {'seconds':>8s} {'warm-up':>8s} {'bake':>7s} "
-            f"{'relMSE':>9s} {'MAE':>8s} {'bias':>8s} {'leak':>8s}  notes")
+            f"{'relMSE':>9s} {'MAE':>8s} {'SSIM':>7s} {'bias':>8s} {'leak':>8s}  notes")
     say(head)
     say("-" * len(head))
     for r in rows:
@@ -610,6 +640,7 @@ def print_table(rows):
         say(f"{r['scene']:8s} {r['engine']:17s} {fmt(r.get('seconds'), '8.2f', '       -')} "
             f"{fmt(r.get('warmup'), '8.2f', '       -')} {fmt(r.get('bake'), '7.2f', '      -')} "
             f"{fmt(r.get('rel_mse'), '9.4f', '        -')} {fmt(r.get('mae'), '8.4f', '       -')} "
+            f"{fmt(r.get('ssim'), '7.4f', '      -')} "
             f"{fmt(r.get('bias'), '+8.1%', '       -')} "
             f"{fmt(None if leak is None else leak, '8.2%', '       -')}"
             f"  {'; '.join(r.get('notes', []))}")
@@ -750,6 +781,7 @@ def main(argv=None):
         engines=args.engines, wall_seconds=wall, environment=env, rows=rows,
         metrics_doc=dict(rel_mse=f"mean((x-ref)^2/(ref^2+{EPS}))", mae="mean |x-ref|",
                          bias="mean lum(x)/mean lum(ref)-1",
+                         ssim="mean SSIM of tone-mapped luminance, 11x11 Gaussian window",
                          leak=f"thin: mean lum over ref lum<{BLACK} / mean lum over lit px")),
         indent=1, default=str))
     say(f"results: {out / 'results.json'}")
