@@ -101,3 +101,45 @@ def test_split_sky_lights_a_sphere_with_the_closed_form(tmp_path):
     bottom = ~hit & (rows < 6)
     np.testing.assert_allclose(combined[top].mean(axis=0), A, rtol=0.02)
     np.testing.assert_allclose(combined[bottom].mean(axis=0), B, rtol=0.02)
+
+
+LIGHT_PATH = """
+from lumen_gi.gpu_shaders import engine
+scene = empty_scene(voxel_density=12.0, cache_dir="cache")
+bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12, radius=0.6)
+w = bpy.data.worlds.new("Trick")
+scene.world = w
+if w.node_tree is None:
+    w.use_nodes = True
+nt = w.node_tree
+lp = nt.nodes.new("ShaderNodeLightPath")
+mix = nt.nodes.new("ShaderNodeMix")
+mix.data_type = "RGBA"
+ins = {s.identifier: s for s in mix.inputs}
+ins["A_Color"].default_value = (0.9, 0.8, 0.7, 1.0)      # what lights the scene
+ins["B_Color"].default_value = (0.1, 0.2, 0.6, 1.0)      # what the camera sees
+nt.links.new(lp.outputs["Is Camera Ray"], ins["Factor_Float"])
+nt.links.new({s.identifier: s for s in mix.outputs}["Result_Color"], nt.nodes["Background"].inputs["Color"])
+aimed_camera((0.0, -3.0, 0.0))
+scene.render.engine = "LUMEN_GI"
+scene.lumen.gi_quality = "LOW"
+scene.render.resolution_x = scene.render.resolution_y = 32
+res, err = bake()
+assert err is None, err
+bpy.ops.render.render()
+R = engine.LAST_RENDER
+assert "error" not in R, R.get("traceback", R.get("error"))
+hit = R["position"][..., 3] > 0.5
+emit(notes=R["notes"], lit=float(R["combined"][..., :3][hit].mean()))
+"""
+
+
+def test_a_world_node_the_capture_cannot_see_is_named_never_black(tmp_path):
+    """A Light Path trick (one colour for camera rays, another for light): the capture sees what
+    the camera sees, so the warning names the node; the sphere is lit all the same."""
+    run = run_python(LIGHT_PATH, tmp_path, timeout=200)
+    assert run.returncode == 0, run.explain()
+    notes = run.result["notes"]
+    print(run.result)
+    assert any("'Light Path'" in n and "Trick" in n for n in notes), notes
+    assert run.result["lit"] > 0.05
