@@ -31,6 +31,19 @@ BYTES_PER_INPUT_TRIANGLE = 135.0     # every mesh's extracted arrays, held for t
 BYTES_PER_ROOT_TRIANGLE = 1.0e6      # x sqrt(triangles) of the mesh being baked: its triangle
                                      # pairs and ray batches (measured to grow as about T^0.56)
 BYTES_PER_SAMPLE = 63.0              # dense grids of the mesh being baked
+# GPU bytes per atlas texel while rendering (gpu_shaders/surface_cache.py stats(): the card
+# layers albedo/emissive RGBA16F and normal RGBA32F, the lighting atlas's direct, indirect, final
+# and probe-ray RGBA32F images, probe SH and tables; measured 2.61 MB for 25k texels)
+GPU_BYTES_PER_TEXEL = 105.0
+
+
+def texel_budget_text(budget: int) -> str:
+    """What a texel budget means: the square atlas it fills and its GPU memory."""
+    side = int(max(budget, 0) ** 0.5)
+    mb = budget * GPU_BYTES_PER_TEXEL / 2 ** 20
+    return f"= {side} x {side} atlas, ~{mb:,.0f} MB of GPU memory"
+
+
 BYTES_PER_TEXEL = 100.0              # atlas layers (11 float channels) and the cards' own copies
                                      # (not fitted: one mesh's cards are too few to tell)
 

@@ -1,6 +1,7 @@
 """The Lumen tab of the 3D viewport sidebar (N-panel): settings, bake, stats, export, atlas."""
 import bpy
 
+from ..lumen_addon.estimate import texel_budget_text
 from .bake_op import RUNNING, cached_estimate, human_bytes
 
 
@@ -30,6 +31,7 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
         col.prop(s, "max_resolution")
         col.prop(s, "texel_density")
         col.prop(s, "texel_budget")
+        col.label(text=texel_budget_text(s.texel_budget))
         col.prop(s, "cache_dir")
 
         obj = context.object
