@@ -39,10 +39,10 @@ _VIEW_DEPENDENT = {"LIGHT_PATH": "it tells camera rays from light rays, and the 
                    "TEX_COORD": "its Window/Camera/Reflection outputs depend on the camera"}
 
 
-def _value(v):
+def _value(v, depth=0):
     if hasattr(v, "__len__") and not isinstance(v, str):
         try:
-            return tuple(_value(x) for x in v)
+            return tuple(_value(x, depth) for x in v)
         except TypeError:
             pass
     if hasattr(v, "bl_rna"):                       # an ID or struct pointer
@@ -51,7 +51,13 @@ def _value(v):
                     getattr(v, "frame_duration", 0))
         if hasattr(v, "nodes"):
             return ("Tree", _tree_signature(v))
-        return (v.bl_rna.identifier, getattr(v, "name", ""))
+        if isinstance(v, bpy.types.ID) or depth >= 2:
+            return (v.bl_rna.identifier, getattr(v, "name", ""))
+        # a node's own struct (an Environment Texture's texture_mapping rotation, a colour
+        # ramp's stops): its values, so editing them re-captures the world
+        return (v.bl_rna.identifier,) + tuple(
+            (p.identifier, _value(getattr(v, p.identifier, None), depth + 1))
+            for p in v.bl_rna.properties if p.identifier != "rna_type")
     return v
 
 
