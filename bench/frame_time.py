@@ -10,11 +10,23 @@ everything a viewport redraw runs: G-buffer, direct light with SDF shadows and o
 (surface cache direct + radiosity probes + screen probes; `--quality`, render_frames = bounces = 1,
 so F12 does exactly one GI frame). A converged F12 render is render_frames + bounces - 1 of those.
 
+With `--trace` it also times the GI tracer alone (glsl/gi_trace_lib.glsl, one ray per pixel from
+the scene camera, read back so the time is the GPU's), its global-SDF hits read from voxel
+lighting and, in the same process, refined on every mesh SDF as before voxel lighting; and one
+update of all four voxel-lighting levels (the per-object cost that voxel lighting moves there).
+
+With `--compare` it also renders LUMEN_GI with voxel lighting off and on, alternately (`--repeat`
+each, same process: what the shared machine's load does to one does to the other), and prints
+both medians with their screen-probe and surface-cache times. Off: every global-SDF hit is
+refined on the mesh SDFs, as before voxel lighting (GISettings.voxel_lighting, set by patching
+gi_settings.from_scene for the bench: the scene has no property for it).
+
 With `--viewport W H` it also times the viewport path: the engine's own view_draw at W x H
 (tools/viewport_harness.py: offscreen, duck-typed context, one GI iteration per redraw) at viewport
 Pixel Size 1 and 2, against EEVEE's 1-sample render at W x H.
 
-    ./lumen bench frame_time [--size 256] [--repeat 5] [--viewport 640 360]
+    ./lumen bench frame_time [--size 256] [--repeat 5] [--extra-objects N] [--trace] [--compare]
+                             [--viewport 640 360]
 """
 from __future__ import annotations
 
@@ -90,6 +102,106 @@ def time_renders(repeat: int) -> list:
     return times
 
 
+def compare_voxel_lighting(repeat: int) -> dict:
+    """{True: [(seconds, gi_timings)], False: [...]}: renders with voxel lighting on / off,
+    alternately (see the module docstring, --compare)."""
+    import dataclasses
+
+    import bpy
+    from lumen_gi.gpu_shaders import engine, gi_settings
+
+    original = gi_settings.from_scene
+    runs = {False: [], True: []}
+    try:
+        for _ in range(repeat):
+            for on in (False, True):
+                gi_settings.from_scene = (lambda s, viewport=False, on=on: dataclasses.replace(
+                    original(s, viewport), voxel_lighting=on))
+                t = time.perf_counter()
+                bpy.ops.render.render()
+                runs[on].append((time.perf_counter() - t, dict(engine.LAST_RENDER["gi_timings"])))
+    finally:
+        gi_settings.from_scene = original
+    return runs
+
+
+def trace_bench(scene, size: int, repeat: int, quality: str) -> dict:
+    """See the module docstring (--trace). Runs inside a tiny RenderEngine (a GPU context)."""
+    import bpy
+
+    out = {}
+
+    def job(depsgraph):
+        from lumen_gi.gpu_shaders import engine, gi_settings
+        from lumen_gi.gpu_shaders.global_sdf import GlobalSDF
+        from lumen_gi.gpu_shaders.resources import SceneResources, float_buffer
+        from lumen_gi.gpu_shaders.screen_probes import trace_view
+        from lumen_gi.gpu_shaders.sky_light import SkyLight
+        from lumen_gi.gpu_shaders.surface_cache import SurfaceCache
+        from lumen_gi.gpu_shaders.voxel_lighting import VoxelLighting
+        from lumen_gi.lumen_addon import sky as sky_maps
+        import gpu
+
+        bake, _ = engine.scene_bake(scene)
+        preset = gi_settings.PRESETS[quality if quality != "OFF" else "MEDIUM"]
+        res = SceneResources.from_bake(bake)
+        cache = SurfaceCache(bake.atlas, [i.cards for i in bake.instances])
+        lights = gpu.types.GPUTexture((4, 1), format='RGBA32F', data=float_buffer([0.0] * 16))
+        cache.light_direct(res, lights, 0)
+        cache.combine(res)
+        vp, cam, _ = engine.view_projection(depsgraph, scene.camera, size, size)
+        inv = np.linalg.inv(vp)
+        gsdf = GlobalSDF(res, n=preset["gsdf_n"], base_voxel=preset["gsdf_voxel"])
+        gsdf.update(cam, 0)
+        voxels = VoxelLighting(gsdf.n)
+        sky = SkyLight()
+        sky.update(sky_maps.constant(tuple(scene.world.color)))
+        updates = []
+        for _ in range(repeat + 1):
+            t = time.perf_counter()
+            voxels.update(res, gsdf, cache, 0, everything=True)
+            voxels.read_count()                              # waits for the GPU
+            updates.append(time.perf_counter() - t)
+        for name, v in (("voxel", voxels), ("refined", None)):
+            times = []
+            for _ in range(repeat + 1):                      # the first compiles
+                t = time.perf_counter()
+                o = trace_view(res, gsdf, cache, sky, inv, size, size, 100.0, voxels=v)
+                times.append(time.perf_counter() - t)
+            out[name] = statistics.median(times[1:])
+            if v is not None:
+                out["global"] = float(o["global"].mean())
+                out["served"] = float(o["voxel"][o["global"]].mean()) if o["global"].any() else 1.0
+        out["update"] = statistics.median(updates[1:])
+
+    class TraceBench(bpy.types.RenderEngine):
+        bl_idname = "LUMEN_TRACE_BENCH"
+        bl_label = "gi_trace bench"
+        bl_use_gpu_context = True
+
+        def render(self, depsgraph):
+            import traceback
+            try:
+                job(depsgraph)
+            except Exception:
+                out["error"] = traceback.format_exc()
+            result = self.begin_result(0, 0, 4, 4)
+            self.end_result(result)
+
+    bpy.utils.register_class(TraceBench)
+    before = (scene.render.engine, scene.render.resolution_x, scene.render.resolution_y)
+    scene.render.engine = TraceBench.bl_idname
+    scene.render.resolution_x = scene.render.resolution_y = 4
+    try:
+        bpy.ops.render.render()
+    finally:
+        scene.render.engine, scene.render.resolution_x, scene.render.resolution_y = before
+        bpy.utils.unregister_class(TraceBench)
+    if "error" in out:
+        raise SystemExit(out["error"])
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     ap.add_argument("--size", type=int, default=256)
@@ -97,6 +209,10 @@ def main():
     ap.add_argument("--quality", default="MEDIUM", choices=("OFF", "LOW", "MEDIUM", "HIGH"))
     ap.add_argument("--extra-objects", type=int, default=0,
                     help="unique cubes added on a 40 m grid (more cards: the surface-cache budget)")
+    ap.add_argument("--compare", action="store_true",
+                    help="also render with voxel lighting off and on, alternately")
+    ap.add_argument("--trace", action="store_true",
+                    help="also time gi_trace per camera ray: voxel lighting vs mesh refinement")
     ap.add_argument("--viewport", type=int, nargs=2, metavar=("W", "H"),
                     help="also time view_draw at W x H (Pixel Size 1 and 2) against EEVEE at W x H")
     args = ap.parse_args()
@@ -129,6 +245,8 @@ def main():
                      if k in R}
         if "gi_timings" in R:
             breakdown.update({"gi_" + k: round(v * 1000, 1) for k, v in R["gi_timings"].items()})
+        trace = trace_bench(scene, args.size, args.repeat, args.quality) if args.trace else None
+        compare = compare_voxel_lighting(args.repeat) if args.compare else None
         viewport = {}
         if args.viewport:
             import viewport_harness
@@ -164,6 +282,25 @@ def main():
     print(f"{eevee_id:14s} warm-up {eevee[0] * 1000:8.1f} ms, median {m_eevee * 1000:8.1f} ms "
           f"(1 render sample)")
     print(f"ratio LUMEN_GI / {eevee_id} = {m_ours / m_eevee:.3f}")
+    if "voxel_lighting" in R.get("gpu_bytes", {}):
+        print(f"voxel lighting GPU memory: {R['gpu_bytes']['voxel_lighting'] / 2 ** 20:.1f} MiB "
+              f"(+ {R['gpu_bytes']['voxel_lighting_tiles'] / 2 ** 20:.2f} MiB tile lists)")
+    if compare:
+        def med(on, key=None):
+            return statistics.median(r[0] if key is None else r[1][key] for r in compare[on]) * 1000
+        print(f"voxel lighting off / on, alternately, {args.repeat} each: frame {med(False):.1f} / "
+              f"{med(True):.1f} ms (x{med(False) / med(True):.2f}), screen probes "
+              f"{med(False, 'probes'):.1f} / {med(True, 'probes'):.1f} ms, surface-cache "
+              f"radiosity {med(False, 'sc_indirect'):.1f} / {med(True, 'sc_indirect'):.1f} ms, "
+              f"voxel update - / {med(True, 'voxel_lighting'):.1f} ms; each run's frame ms: "
+              f"off {[round(r[0] * 1000) for r in compare[False]]}, "
+              f"on {[round(r[0] * 1000) for r in compare[True]]}")
+    if trace:
+        print(f"gi_trace {args.size}x{args.size} camera rays: voxel lighting "
+              f"{trace['voxel'] * 1000:.1f} ms ({trace['global'] * 100:.0f}% global-SDF hits, "
+              f"{trace['served'] * 100:.1f}% of them served by voxels), refined on the mesh SDFs "
+              f"{trace['refined'] * 1000:.1f} ms (x{trace['refined'] / trace['voxel']:.2f}); "
+              f"voxel lighting update, all 4 levels: {trace['update'] * 1000:.1f} ms")
     if args.viewport:
         m_ev = statistics.median(eevee_view[1:])
         vw, vh = args.viewport

@@ -60,7 +60,7 @@ VIEW_PROPERTY = "lumen_preview_view"       # legacy: "DEPTH" selects the DEPTH d
 DEBUG_VIEWS = ("COMBINED", "DEPTH", "STEPS", "NORMAL", "ALBEDO", "DIRECT", "INDIRECT", "HYBRID",
                "SC_FINAL", "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS",
                "SC_UPDATES", "PROBES",
-               "PROBE_FALLBACK")
+               "PROBE_FALLBACK", "VOXEL_LIGHTING")
 TRACE_VIEWS = ("DEPTH", "STEPS", "HYBRID")
 CARD_VIEWS = {"SC_FINAL": "final", "SC_ALBEDO": "albedo", "SC_NORMAL": "normal",
               "SC_DIRECT": "direct", "SC_INDIRECT": "indirect", "CARDS": "cards",
@@ -395,6 +395,8 @@ def _debug_image(view, state, gbuf, images, cam_pos, width, height, gi_cfg):
         shown = np.zeros((height, width, 4), np.float32)
         shown[..., 0] = (w == 0).astype(np.float32)
         shown[..., 1] = (w > 0).astype(np.float32)
+    elif view == "VOXEL_LIGHTING" and getattr(state, "voxel_lighting", None) is not None:
+        shown = state.voxel_lighting.view(state.global_sdf, gbuf, cam_pos, width, height)
         shown[shown[..., 3] < 0] = 0.0
     else:
         shown = {"DIRECT": images["direct"], "INDIRECT": images["indirect"],

@@ -1,6 +1,10 @@
 """Indirect light of one frame, in the order of the passes (the lecture's pipeline):
 
     global SDF clipmaps  (global_sdf.py: rebuilt when objects moved, levels on their cadence)
+    voxel lighting       (voxel_lighting.py: the clipmaps' voxels lit from the surface cache, 6
+                         directions; levels that moved before the rays, and after each combine
+                         the levels due (same cadence as the clipmaps; every level when objects
+                         moved and every F12 iteration)): what the rays' global-SDF hits read
     surface cache        direct light per card texel, then per iteration: indirect rays reading
                          last iteration's final light (one more bounce each time), combine;
                          the viewport relights a budget of tiles per frame by priority
@@ -33,6 +37,15 @@ def _global_sdf(state, gi: GISettings):
     return g
 
 
+def _voxel_lighting(state, gsdf):
+    from .voxel_lighting import VoxelLighting
+
+    v = getattr(state, "voxel_lighting", None)
+    if v is None or v.n != gsdf.n:
+        v = state.voxel_lighting = VoxelLighting(gsdf.n)
+    return v
+
+
 def _probes(state, gi: GISettings, width: int, height: int):
     from .screen_probes import ScreenProbes
 
@@ -50,6 +63,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     t0 = time.perf_counter()
     res, cache = state.resources, state.surface_cache
     gsdf = _global_sdf(state, gi)
+    voxels = _voxel_lighting(state, gsdf) if gi.voxel_lighting else None
     probes = _probes(state, gi, width, height)
     scene_changed = bool(changes & {"atlas", "objects", "cards", "lights"}) \
         or state.gi_sky != sky.key
@@ -71,7 +85,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         tiles = cache.plan(frame0, budget=gi.sc_tiles, history=gi.history, where=where)
     cache.light_direct(res, state.light_texture, len(state.lights), tiles=tiles)
     t2 = time.perf_counter()
-    timings = {"gsdf": 0.0, "sc_indirect": 0.0, "probes": 0.0}
+    timings = {"gsdf": 0.0, "voxel_lighting": 0.0, "sc_indirect": 0.0, "probes": 0.0}
     if final:
         schedule = gi.render_schedule()
     else:
@@ -79,32 +93,42 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         m = probes.history is not None and probes.frames or 0
         schedule = [(1.0, max(1.0 / (m + 1), 1.0 / gi.history))]
     result, relit = None, 0
+    relight = final or scene_changed         # the voxel lighting holds light from before a reset
     for sc_blend, px_blend in schedule:
         frame = state.gi_frame
         state.gi_frame += 1
         a = time.perf_counter()
         gsdf.update(cam_pos, frame, objects_changed)
-        objects_changed = False
         b = time.perf_counter()
+        if voxels is not None:       # its levels are the clipmaps': where they moved, follow;
+            # after a reset, all from the reset light (an F12 render is the same every time)
+            voxels.update(res, gsdf, cache, frame, everything=relight, aligned_only=not relight)
+            relight = False
+        v = time.perf_counter()
         if sc_blend is not None:
             if final:
                 frame_tiles = cache.plan(frame, blend=sc_blend)
             else:
                 frame_tiles = tiles                  # one iteration per viewport frame
-            relit += cache.light_indirect(res, gsdf, sky, frame, t_max, frame_tiles)
+            relit += cache.light_indirect(res, gsdf, sky, frame, t_max, frame_tiles, voxels)
             cache.combine(res)
         c = time.perf_counter()
+        if voxels is not None:       # this combine's light, for the probes and the next rays
+            voxels.update(res, gsdf, cache, frame, everything=final or objects_changed)
+        objects_changed = False
+        c2 = time.perf_counter()
         if px_blend is not None:
             if gi.gather == "PIXEL":
                 from .screen_probes import pixel_gather
                 new = pixel_gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max,
-                                   gi.pixel_rays, width, height)
+                                   gi.pixel_rays, width, height, voxels)
             else:
-                new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max)
+                new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels)
             result = probes.temporal(new, px_blend)
         timings["gsdf"] += b - a
-        timings["sc_indirect"] += c - b
-        timings["probes"] += time.perf_counter() - c
+        timings["voxel_lighting"] += (v - b) + (c2 - c)
+        timings["sc_indirect"] += c - v
+        timings["probes"] += time.perf_counter() - c2
     timings.update(setup=t1 - t0, sc_direct=t2 - t1, total=time.perf_counter() - t0)
     if final:
         progress = (len(schedule), len(schedule))

@@ -10,6 +10,9 @@ F12 render accumulates:
     sc_tiles         viewport surface-cache budget: tiles of 32x32 lighting texels relit per frame
                      (surface_cache_pages.py; F12 relights all); the scene's Cache Texels per
                      Frame overrides it
+`voxel_lighting` (on unless a settings object says otherwise): a global-SDF hit is searched among
+its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, it is searched on
+every mesh SDF and reads the surface cache, whose cost grows with the number of objects.
 """
 from __future__ import annotations
 
@@ -36,6 +39,7 @@ class GISettings:
     sc_tiles: int = 32
     gather: str = "PROBES"         # PROBES (screen probes) or PIXEL (reference: rays per pixel)
     pixel_rays: int = 64           # PIXEL: cosine rays per pixel per frame
+    voxel_lighting: bool = True    # far (global-SDF) hits read voxel lighting
 
     @property
     def enabled(self) -> bool:
@@ -71,4 +75,5 @@ def from_scene(scene_settings, viewport: bool = False) -> GISettings:
         extra["sc_tiles"] = -(-texels // 1024)
     return settings(q, bounces=int(getattr(scene_settings, "bounces", 3)),
                     render_frames=int(getattr(scene_settings, "render_frames", 8)),
-                    gather=str(getattr(scene_settings, "gi_gather", "PROBES")), **extra)
+                    gather=str(getattr(scene_settings, "gi_gather", "PROBES")),
+                    voxel_lighting=bool(getattr(scene_settings, "voxel_lighting", True)), **extra)

@@ -28,7 +28,8 @@ UBO_SLOT = 0   # GlobalSDFParams' binding; no other pass library declares a unif
 PARAMS_TYPEDEF = """
 struct GlobalSDFParams {
   vec4 origin[4]; /* xyz: the level's first world cell (integers), w: its voxel size (m) */
-  vec4 band;      /* x: values are clamped to min(d, band.x * voxel) per level */
+  vec4 band;      /* x: values are clamped to min(d, band.x * voxel) per level; y: half the
+                     largest mesh voxel in world metres (the thin-wall margin of gi_trace) */
 };
 """
 BYTES = {"R16F": 2, "R32F": 4}
@@ -168,9 +169,19 @@ class GlobalSDF:
         return first_slot + LEVELS
 
     def params(self) -> np.ndarray:
-        """float32 [LEVELS + 1, 4]: GlobalSDFParams in std140 (origin[k] = cell xyz, voxel; band)."""
+        """float32 [LEVELS + 1, 4]: GlobalSDFParams in std140 (origin[k] = cell xyz, voxel; band,
+        thin-wall margin). The margin is computed here once per bind, not per ray on the GPU,
+        where it was a loop over every object."""
         rows = [(*map(float, self.origins[k]), self.voxels[k]) for k in range(LEVELS)]
-        return np.array(rows + [(self.band_voxels, 0.0, 0.0, 0.0)], np.float32)
+        return np.array(rows + [(self.band_voxels, self.thin_margin(), 0.0, 0.0)], np.float32)
+
+    def thin_margin(self) -> float:
+        """Half the largest world voxel of the mesh SDFs (object table texels 4.w x 7.w, the same
+        float32 product the shaders used to take per ray)."""
+        objects = np.asarray(self.resources.packed.objects, np.float32)
+        if not len(objects):
+            return 0.0
+        return float(0.5 * np.max(objects[:, 4, 3] * objects[:, 7, 3]))
 
     def bind(self, shader):
         if any(o is None for o in self.origins):

@@ -74,6 +74,7 @@ class SceneState:
         self.cards_key = None        # card_key() of the surface cache on the GPU
         self.surface_cache = None    # surface_cache.SurfaceCache
         self.global_sdf = None       # global_sdf.GlobalSDF (gi.py makes it for the resources)
+        self.voxel_lighting = None   # voxel_lighting.VoxelLighting (gi.py, the clipmaps' voxels)
         self.probes = None           # screen_probes.ScreenProbes (gi.py, per image size)
         self.gi_frame = 0            # frames of GI run (jitter sequences, clipmap cadence)
         self.gi_view_key = None      # camera + size of the probes' history
@@ -172,5 +173,7 @@ class SceneState:
                         if k != "total"})
         if self.probes is not None:
             out.update(self.probes.stats())
+        if self.voxel_lighting is not None:
+            out.update(self.voxel_lighting.stats())
         out.update(self.sky.stats())
         return out

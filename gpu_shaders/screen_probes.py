@@ -18,10 +18,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import compute
+from . import compute, voxel_lighting
 from .probe_math import hammersley
 
-GI_LIBS = ("sampling_lib.glsl", "octahedral_lib.glsl", "gi_trace_lib.glsl")
+GI_LIBS = (("sampling_lib.glsl", "octahedral_lib.glsl") + voxel_lighting.LIBS
+           + ("gi_trace_lib.glsl",))
+VL = voxel_lighting.SAMPLERS      # every pass that traces reads the voxel lighting at far hits
 
 
 class ScreenProbes:
@@ -41,9 +43,11 @@ class ScreenProbes:
         ray = np.mod(h[(frame * 7 + 5) % 16] + 0.5 / 16.0, 1.0)
         return tile, ray
 
-    def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float):
+    def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
+               voxels=None):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
-        0 fallback, -1 background)."""
+        0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
+        (None: refined on the mesh SDFs)."""
         gw, gh = self.grid
         r = self.res
         tile_j, ray_j = self.jitter(frame)
@@ -64,7 +68,7 @@ class ScreenProbes:
         compute.dispatch(sh, gw, gh)
 
         tex["radiance"] = compute.texture((gw * r, gh * r))
-        sh = compute.shader("screen_probe_trace", samplers=("probe_info", "probe_normal"),
+        sh = compute.shader("screen_probe_trace", samplers=("probe_info", "probe_normal") + VL,
                             push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max')),
                             libs=GI_LIBS, scene=True, surface_cache=True, global_sdf=True)
         resources.bind(sh)
@@ -73,6 +77,7 @@ class ScreenProbes:
         sh.uniform_sampler("probe_info", tex["info"])
         sh.uniform_sampler("probe_normal", tex["normal"])
         sky.bind(sh)
+        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
         sh.uniform_int("probe_res", r)
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.uniform_float("t_max", float(t_max))
@@ -107,7 +112,7 @@ class ScreenProbes:
         tex["integrated"] = compute.texture((self.width, self.height))
         sh = compute.shader("screen_probe_integrate",
                             samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
-                                      "probe_sh"),
+                                      "probe_sh") + VL,
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
                                   ('FLOAT', 't_max')),
                             libs=("gbuffer_lib.glsl", "sh_lib.glsl", "probe_interp_lib.glsl")
@@ -117,6 +122,7 @@ class ScreenProbes:
         cache.bind(sh)
         gsdf.bind(sh)
         sky.bind(sh)
+        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
         sh.uniform_int("frame", int(frame))
         sh.uniform_float("t_max", float(t_max))
         sh.uniform_sampler("gbuf_position", g["position"])
@@ -155,12 +161,12 @@ class ScreenProbes:
 
 
 def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
-                 rays: int, width: int, height: int):
+                 rays: int, width: int, height: int, voxels=None):
     """Reference gather (glsl/pixel_gather.comp.glsl): `rays` cosine rays per pixel through the
-    same tracer and surface cache as the probes. RGBA32F texture of E."""
+    same tracer, surface cache and voxel lighting as the probes. RGBA32F texture of E."""
     g = gbuf["textures"]
     out = compute.texture((width, height))
-    sh = compute.shader("pixel_gather", samplers=("gbuf_position", "gbuf_normal"),
+    sh = compute.shader("pixel_gather", samplers=("gbuf_position", "gbuf_normal") + VL,
                         push=(('VEC3', 'cam_pos'), ('INT', 'rays'), ('INT', 'frame'),
                               ('FLOAT', 't_max')),
                         libs=("gbuffer_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
@@ -172,6 +178,7 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     sh.uniform_sampler("gbuf_normal", g["normal"])
     sh.uniform_float("cam_pos", compute.vec(cam_pos))
     sky.bind(sh)
+    held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
     sh.uniform_int("rays", int(rays))
     sh.uniform_int("frame", int(frame))
     sh.uniform_float("t_max", float(t_max))
@@ -180,22 +187,28 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     return out
 
 
-def trace_view(resources, gsdf, cache, sky, inv_view_proj, width: int, height: int, t_max: float) -> dict:
+def trace_view(resources, gsdf, cache, sky, inv_view_proj, width: int, height: int, t_max: float,
+               voxels=None) -> dict:
     """glsl/gi_trace_view.comp.glsl: gi_trace per camera ray (the HYBRID debug view).
-    Returns {'hit' (-1 miss), 'global' (bool: the hit came from the global-SDF part)}."""
+    Returns {'hit' (-1 miss), 'global' (bool: the hit came from the global-SDF part), 'voxel'
+    (bool: a global hit served by `voxels`, the voxel lighting; None: every global hit is
+    refined on the mesh SDFs)}."""
     import mathutils
 
     out = compute.texture((width, height))
-    sh = compute.shader("gi_trace_view", push=(('MAT4', 'inv_view_proj'), ('FLOAT', 't_max')),
+    sh = compute.shader("gi_trace_view", samplers=VL,
+                        push=(('MAT4', 'inv_view_proj'), ('FLOAT', 't_max')),
                         libs=("camera_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
                         global_sdf=True)
     resources.bind(sh)
     cache.bind(sh)
     gsdf.bind(sh)
     sky.bind(sh)
+    held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
     sh.uniform_float("inv_view_proj", mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
     sh.uniform_float("t_max", float(t_max))
     sh.image("out_image", out)
     compute.dispatch(sh, width, height)
     data = compute.read(out)
-    return {"hit": data[..., 0].copy(), "global": data[..., 1] > 0.5}
+    return {"hit": data[..., 0].copy(), "global": data[..., 1] > 0.5,
+            "voxel": (data[..., 0] >= 0) & (data[..., 2] < -0.5)}

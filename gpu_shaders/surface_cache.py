@@ -26,7 +26,7 @@ import time
 import gpu
 import numpy as np
 
-from . import compute
+from . import compute, voxel_lighting
 from .card_packing import CARD_TEXELS, PackedCards, pack_cards
 from .resources import SceneResources, float_buffer
 from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule
@@ -172,13 +172,14 @@ class SurfaceCache:
         compute.run(sh, len(tiles[0]) * TILE // GROUP, TILE // GROUP, 1)
 
     def light_indirect(self, resources: SceneResources, gsdf, sky, frame: int, t_max: float,
-                       tiles) -> int:
+                       tiles, voxels=None) -> int:
         """E_indirect = mix(last E_indirect, this frame's probes, blend) on `tiles` (plan(): the
         tile indices and a blend each), in three passes over those tiles only:
         surface_cache_probe_trace (16 rays per probe of 4x4 texels, surface cache at hits),
         surface_cache_probe_sh (3x3 probe filter, two-band SH), surface_cache_indirect (per
         texel: 2x2 probes' SH irradiance at the texel's normal, temporal blend, in place).
-        Returns the number of tiles relit."""
+        voxels: voxel_lighting.VoxelLighting, read at the rays' global-SDF hits (None: those are
+        refined on the mesh SDFs). Returns the number of tiles relit."""
         idx = tiles[0]
         if not len(idx):
             return 0
@@ -189,7 +190,8 @@ class SurfaceCache:
                       "surface_cache_probe_lib.glsl")
         page_samplers = ("sc_pages", "sc_tile_frame")
         sh = pass_shader("surface_cache_probe_trace",
-                         probe_libs + ("gi_trace_lib.glsl",), page_samplers,
+                         probe_libs + voxel_lighting.LIBS + ("gi_trace_lib.glsl",),
+                         page_samplers + voxel_lighting.SAMPLERS,
                          (('INT', 'frame'), ('FLOAT', 't_max')),
                          images=("probe_out", "probe_pos_out"), gsdf=True)
         resources.bind(sh)
@@ -199,6 +201,7 @@ class SurfaceCache:
         sh.uniform_sampler("sc_pages", pages)
         sh.uniform_sampler("sc_tile_frame", self.tile_frame)
         sky.bind(sh)
+        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
         sh.uniform_int("frame", int(frame))
         sh.uniform_float("t_max", float(t_max))
         sh.image("out_image", t["rays"])

@@ -98,7 +98,10 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                 "green relit this frame, to red 8 or more frames ago; magenta not yet relit"),
                ('PROBES', "Probe Atlas", "The screen probes' octahedral radiance, one tile each"),
                ('PROBE_FALLBACK', "Probe Interpolation", "Green: interpolated from probes on the "
-                "pixel's plane, red: fallback (no probe on that plane)")),
+                "pixel's plane, red: fallback (no probe on that plane)"),
+               ('VOXEL_LIGHTING', "Voxel Lighting", "What a far (global SDF) ray hit reads from "
+                "the voxel lighting, along the camera ray (magenta: no voxel face serves it; such "
+                "hits read the surface cache)")),
         default='COMBINED')
     gi_quality: EnumProperty(
         name="Render Quality", description="Budgets of the global illumination passes in F12 "

@@ -1,29 +1,38 @@
 /* Lumen GI: the rays of the GI passes (needs sdf_lib.glsl, sdf_ray_lib.glsl,
- * global_sdf_lib.glsl, surface_cache_lib.glsl, sky_lib.glsl).
+ * global_sdf_lib.glsl, voxel_lighting_layout_lib.glsl, voxel_lighting_lib.glsl,
+ * surface_cache_lib.glsl, sky_lib.glsl).
  *
  * gi_trace: sphere tracing through the mesh SDFs while t < GSDF_MESH_SPLIT (1.8 m, lecture 21),
  * the global SDF beyond, both with the thin-wall rule (sdf_ray_lib.glsl).
- * A global-SDF hit is refined with the mesh SDFs over the last 1.5 global voxels (to land on a
- * mesh, whose surface cache is then read); if no mesh is found there the global trace goes on.
- * gi_radiance: the surface cache's final light at the hit (sc_sample_world), sky_ray on a miss.
+ * A global-SDF hit is found on the mesh SDFs over the last 1.5 global voxels (the global SDF's
+ * voxels are coarser than a thin wall, which its trace may step past); with voxel lighting bound
+ * (voxel_lighting_lib.glsl) only the objects of the hit's 4x4x4-voxel tile are searched (fewer
+ * than 32; a full list means more may be near: then all), and the light is read from the voxel
+ * lighting there, so the cost no longer grows with the number of objects (before, every object
+ * was sampled at every step of that search, and the surface cache's lookup with its thin-wall
+ * guard looped over them again). A hit no voxel face serves reads the surface cache as a near hit
+ * does. Without voxel lighting every object is searched. If no mesh is found the global trace
+ * goes on.
+ * gi_radiance: the light at the hit (the surface cache's final light on a mesh hit, the voxel
+ * lighting on a served global hit), sky_ray on a miss.
  */
 #define GI_GLOBAL_STEPS 96
 
-/* Half the largest mesh voxel of the scene (world metres). The global SDF holds the mesh SDFs'
- * values, which over a wall thinner than a voxel stay up to half a mesh voxel above zero, and its
- * own trilinear filter adds up to half a global voxel: its hit test allows for both. */
+/* Half the largest mesh voxel of the scene (world metres), computed on the CPU from the object
+ * table (GlobalSDF.params: gsdf.band.y; a loop over every object per ray before). The global SDF
+ * holds the mesh SDFs' values, which over a wall thinner than a voxel stay up to half a mesh voxel
+ * above zero, and its own trilinear filter adds up to half a global voxel: its hit test allows
+ * for both. */
 float gi_thin_margin()
 {
-  float m = 0.0;
-  int n = sdf_object_count();
-  for (int i = 0; i < n; i++) {
-    m = max(m, sdf_object_texel(i, 4).w * sdf_object_texel(i, 7).w);
-  }
-  return 0.5 * m;
+  return gsdf.band.y;
 }
 
-bool gi_trace(vec3 o, vec3 dir, float tmax, out float t, out int obj)
+/* obj >= 0: a hit at t on mesh obj; obj = -1: a global-SDF hit at t served by voxel lighting,
+ * whose radiance is voxel_L. */
+bool gi_trace_lit(vec3 o, vec3 dir, float tmax, out float t, out int obj, out vec3 voxel_L)
 {
+  voxel_L = vec3(0.0);
   float split = min(GSDF_MESH_SPLIT, tmax);
   if (gi_trace_mesh(o, dir, 0.0, split, t, obj)) {
     return true;
@@ -38,9 +47,23 @@ bool gi_trace(vec3 o, vec3 dir, float tmax, out float t, out int obj)
       return false;               /* left the coarsest clipmap: the sky */
     }
     if (d <= GI_HIT_VOXELS * v + thin) {
+      /* Find the mesh over the last 1.5 global voxels (the global trace may step past a wall
+       * thinner than its voxels): with voxel lighting bound, through the objects of the hit's
+       * voxel-lighting tile only, a bounded cost; else through every object. */
+      float t0 = max(t - 1.5 * v, 0.0);
+      float t1 = t + 1.5 * v;
       float tr;
-      if (gi_trace_mesh(o, dir, max(t - 1.5 * v, 0.0), t + 1.5 * v, tr, obj)) {
+      bool found = vl_load_tile(level, o + t * dir) ? vl_trace_tile(o, dir, t0, t1, tr, obj)
+                                                     : gi_trace_mesh(o, dir, t0, t1, tr, obj);
+      if (found) {
         t = tr;
+        vec3 q = o + t * dir;
+        float h = sdf_object_texel(obj, 4).w;
+        vec3 nl = sdf_mesh_normal_local(obj, sdf_world_to_local(obj, q), 0.5 * h);
+        vec3 normal = normalize(transpose(mat3(sc_object_w2l(obj))) * nl);
+        if (vl_sample(level, q, dir, normal, voxel_L)) {
+          obj = -1;               /* served: no surface-cache lookup on the mesh */
+        }
         return true;
       }
       t += 0.5 * v;
@@ -51,12 +74,25 @@ bool gi_trace(vec3 o, vec3 dir, float tmax, out float t, out int obj)
   return false;
 }
 
-/* Radiance arriving at o from direction dir: the surface cache at the first hit, sky on a miss.
- * hit_t: the hit distance (tmax on a miss); weight: card weight (0 when no card saw the hit). */
+/* The hit alone (obj -1: served by voxel lighting). */
+bool gi_trace(vec3 o, vec3 dir, float tmax, out float t, out int obj)
+{
+  vec3 voxel_L;
+  return gi_trace_lit(o, dir, tmax, t, obj, voxel_L);
+}
+
+/* Radiance arriving at o from direction dir: the surface cache (or the voxel lighting) at the
+ * first hit, sky on a miss. hit_t: the hit distance (tmax on a miss); weight: card weight (0 when
+ * no card saw the hit; 1 on a voxel-lit hit). */
 vec3 gi_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out float weight)
 {
   int obj;
-  if (gi_trace(o, dir, tmax, hit_t, obj)) {
+  vec3 voxel_L;
+  if (gi_trace_lit(o, dir, tmax, hit_t, obj, voxel_L)) {
+    if (obj < 0) {
+      weight = 1.0;
+      return voxel_L;
+    }
     return sc_sample_world(obj, o + hit_t * dir, dir, weight);
   }
   hit_t = tmax;

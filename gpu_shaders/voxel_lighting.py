@@ -1,0 +1,221 @@
+"""Voxel lighting (lecture 21, "Voxel Clipmap for Radiance Caching of the Whole Scene"): the light
+of the scene's surfaces in the global SDF's clipmap voxels, 6 axis directions per voxel, so that a
+global-SDF hit reads its light from a few voxels: it is found among its tile's objects only and
+needs no surface-cache lookup, whose cost grew with the number of objects (gi_trace_lib.glsl).
+
+Design choice: the voxels ARE the global SDF's (global_sdf.py): the same 4 levels, N^3 voxels per
+level, voxel size and toroidal texel addressing, so a hit found in level k reads level k's voxels
+at the hit's own texel coordinates (no second clipmap to place or scroll, and a level's voxels
+follow its distances). The lecture's 64^3 x 4 at 0.78 m (50 m) is the HIGH preset's 64^3 at
+0.1-0.8 m here; MEDIUM is 48^3 at 0.125-1 m.
+
+Per level update, two passes (glsl/voxel_lighting_*.comp.glsl):
+    voxel_lighting_tiles   per 4x4x4 voxels: the 32 objects whose bounding spheres come nearest
+                           within reach (the lecture's per-tile object filter; gi_trace searches
+                           these too), every voxel cleared, the voxels near a surface (the global
+                           SDF's own texel) and not inside a solid appended to a list (the
+                           lecture's "compact")
+    voxel_lighting_update  per listed voxel: 6 short rays along the axes through the tile's
+                           objects only, the surface cache's final light at each hit
+Why a list: llvmpipe runs every invocation through all of a shader's code (divergent branches
+are masked, not skipped): measured on the 48^3 levels of bench/frame_time.py's scene, the heavy
+shader over every voxel took 230-290 ms per level, ~30 ms of it with every invocation returning
+at once. The list holds `capacity` voxels per level update (default N^3 / 4, the budget; the
+heavy pass always runs that many invocations, those past the end return at once): voxels past a
+full list stay empty, and their hits read the surface cache (`read_count` tells, for tests).
+
+Texture: one RGBA16F 2D texture, 24 N x N^2 (all levels, 6 faces each: rgb radiance, a = how far
+along the face's ray a surface was met, signed by whether the surface cache lit it; 0: none), one
+sampler; the tiles' object lists another (SAMPLERS, for the passes that trace). The lookup
+(voxel_lighting_lib.glsl) leaves out the faces without a lit surface and the voxels that may not
+light the ray (inside a solid, behind the hit surface, across a thin wall).
+Cadence (`update`, twice per GI iteration in gi.py): before the rays, the levels whose clipmap
+moved (all after a reset); after the combine, level k every 2^k frames as the global SDF, every
+level when the objects moved or on F12 (`everything`), so the rays read the last combine's light
+at voxel hits as at mesh hits. Needs a GPU context.
+"""
+from __future__ import annotations
+
+import time
+
+from . import compute
+from .global_sdf_ref import LEVELS
+
+FACES = 6
+TILE = 4                 # voxels per tile side (voxel_lighting_tiles.comp.glsl's VL_TILE)
+TILE_OBJECTS = 32        # objects kept per tile (VL_TILE_OBJECTS)
+LIST_WIDTH = 256         # VL_LIST_WIDTH
+FORMAT = 'RGBA16F'
+BYTES = {'RGBA16F': 8, 'R32F': 4}
+SAMPLER = "vl_radiance"
+TILES = "vl_tiles"
+SAMPLERS = (SAMPLER, TILES)   # a tracing pass's samplers (gi_trace_lib.glsl)
+LAYOUT = "voxel_lighting_layout_lib.glsl"
+LIBS = (LAYOUT, "voxel_lighting_lib.glsl")   # a tracing pass's libs, before gi_trace_lib.glsl
+_SHADERS = {}
+
+
+def _placeholder():
+    """A 1x1 texture: bound where a pass traces without voxel lighting (vl_enabled() is false:
+    every global-SDF hit is searched on every mesh SDF, as before). Callers hold it until the
+    dispatch."""
+    return compute.texture((1, 1), FORMAT)
+
+
+def bind(shader, voxel_lighting):
+    """Bind SAMPLERS to `voxel_lighting` (or, when None, to a placeholder: returned, keep it
+    until the dispatch)."""
+    if voxel_lighting is not None:
+        voxel_lighting.bind(shader)
+        shader.uniform_sampler(TILES, voxel_lighting.tiles)
+        return voxel_lighting.texture
+    tex = _placeholder()
+    shader.uniform_sampler(SAMPLER, tex)
+    shader.uniform_sampler(TILES, tex)
+    return tex
+
+
+class VoxelLighting:
+    """The voxel lighting of one global SDF's clipmaps (see the module docstring)."""
+
+    def __init__(self, n: int, capacity: int = 0):
+        n = int(n)
+        if n % TILE:
+            raise ValueError(f"voxel lighting needs N divisible by {TILE} (got {n})")
+        self.n = n
+        self.capacity = -(-(int(capacity) or n ** 3 // 4) // LIST_WIDTH) * LIST_WIDTH
+        self.texture = compute.texture((LEVELS * FACES * n, n * n), FORMAT)
+        tn = n // TILE
+        self.tiles = compute.texture((TILE_OBJECTS * tn, LEVELS * tn * tn), 'R32F')
+        self.list = compute.texture((LIST_WIDTH, self.capacity // LIST_WIDTH), 'R32F')
+        self.counter = compute.texture((1, 1), 'R32I')
+        self.gsdf = None                      # the GlobalSDF the levels were made for
+        self.origins = [None] * LEVELS        # that clipmap's origin at each level's last update
+        self.last_update = [None] * LEVELS
+        self.log = []                         # (frame, level, seconds)
+
+    def update(self, resources, gsdf, cache, frame: int, everything: bool = False,
+               aligned_only: bool = False) -> list:
+        """Relight levels from the surface cache's final light (after gsdf.update of the same
+        frame: the levels read its origins and texels); returns the levels updated.
+        aligned_only (before a frame's rays): only the levels whose clipmap moved or that were
+        never built, so that every voxel sits where its global-SDF texel does. Otherwise (after
+        the frame's combine, so this combine's light is what the rays read next, at voxel hits
+        as at mesh hits): the levels due this frame (level k every 2^k frames, unless already
+        done this frame), or all of them with `everything`."""
+        if gsdf.n != self.n:
+            raise ValueError("voxel lighting and global SDF differ in N")
+        if gsdf is not self.gsdf:
+            self.gsdf, self.origins = gsdf, [None] * LEVELS
+        if not cache.has_cards:
+            return []
+        done = []
+        for k in range(LEVELS):
+            origin = gsdf.origins[k]
+            moved = self.origins[k] is None or origin != self.origins[k]
+            due = moved or (not aligned_only and (everything or (
+                int(frame) % (1 << k) == 0 and self.last_update[k] != int(frame))))
+            if not due:
+                continue
+            t0 = time.perf_counter()
+            self._dispatch(k, resources, gsdf, cache)
+            self.origins[k], self.last_update[k] = origin, int(frame)
+            self.log.append((int(frame), k, time.perf_counter() - t0))
+            done.append(k)
+        del self.log[:-64]
+        return done
+
+    def _dispatch(self, level: int, resources, gsdf, cache):
+        tn = self.n // TILE
+        v = gsdf.voxels[level]
+        self.list.clear(format='FLOAT', value=(-1.0,))
+        self.counter.clear(format='INT', value=(0,))
+        sh = _tiles_shader()
+        resources.bind(sh)
+        gsdf.bind(sh)
+        sh.uniform_int("vl_level", level)
+        # a face ray reaches one voxel past its voxel, plus the thin-wall hit shell
+        sh.uniform_float("vl_reach", float(1.5 * v + 2.0 * gsdf.thin_margin()))
+        sh.uniform_int("vl_capacity", self.capacity)
+        sh.image("out_image", self.tiles)
+        sh.image("vl_faces_out", self.texture)
+        sh.image("vl_list_out", self.list)
+        sh.image("vl_counter", self.counter)
+        compute.dispatch(sh, tn, tn * tn)
+
+        sh = compute.shader("voxel_lighting_update", samplers=("vl_tiles", "vl_list"),
+                            images=(("out_image", FORMAT),), push=(('INT', 'vl_level'),),
+                            libs=(LAYOUT,), scene=True, surface_cache=True, global_sdf=True)
+        resources.bind(sh)
+        cache.bind(sh)
+        gsdf.bind(sh)
+        sh.uniform_sampler("vl_tiles", self.tiles)
+        sh.uniform_sampler("vl_list", self.list)
+        sh.uniform_int("vl_level", level)
+        sh.image("out_image", self.texture)
+        compute.dispatch(sh, LIST_WIDTH, self.capacity // LIST_WIDTH)
+
+    def read_count(self) -> int:
+        """Voxels the last level update listed (== capacity: the list was full, voxels may have
+        been left out). A read-back: tests and debugging only."""
+        return int((compute.read(self.list)[..., 0] >= 0).sum())
+
+    # --- reading from other passes ------------------------------------------------------------
+    def bind(self, shader):
+        """Set voxel_lighting_lib.glsl's sampler (a pass lists SAMPLER among its samplers)."""
+        shader.uniform_sampler(SAMPLER, self.texture)
+
+    def view(self, gsdf, gbuf: dict, cam_pos, width: int, height: int):
+        """glsl/voxel_lighting_view.comp.glsl (the VOXEL_LIGHTING debug view): float32 [h, w, 4],
+        per pixel what a global-SDF hit there reads (w = level + 1; magenta, w = 0: no voxel face;
+        background w = -1)."""
+        g = gbuf["textures"]
+        sh = compute.shader("voxel_lighting_view",
+                            samplers=("gbuf_position", "gbuf_normal", SAMPLER),
+                            push=(('VEC3', 'cam_pos'),), libs=("gbuffer_lib.glsl",) + LIBS,
+                            global_sdf=True)
+        gsdf.bind(sh)
+        self.bind(sh)
+        sh.uniform_sampler("gbuf_position", g["position"])
+        sh.uniform_sampler("gbuf_normal", g["normal"])
+        sh.uniform_float("cam_pos", compute.vec(cam_pos))
+        out = compute.texture((width, height))
+        sh.image("out_image", out)
+        compute.dispatch(sh, width, height)
+        return compute.read(out)
+
+    def read(self):
+        """float32 [LEVELS, 6, n, n, n, 4] ([level, face, z, y, x, rgba]) in texel order: texel t
+        of level k holds world cell origin + ((t - origin) mod n) (global_sdf_ref.texel_cells)."""
+        n = self.n
+        data = compute.read(self.texture)                  # [n*n (z, y), 24 n (level, face, x), 4]
+        data = data.reshape(n, n, LEVELS, FACES, n, 4)     # z, y, level, face, x, c
+        return data.transpose(2, 3, 0, 1, 4, 5).copy()
+
+    def stats(self) -> dict:
+        """GPU bytes of the radiance texture, the tiles' object lists and the update list."""
+        return {"voxel_lighting": self.texture.width * self.texture.height * BYTES[FORMAT],
+                "voxel_lighting_tiles": (self.tiles.width * self.tiles.height
+                                         + self.list.width * self.list.height + 1) * 4}
+
+
+def _tiles_shader():
+    """voxel_lighting_tiles, declared here rather than by compute.shader: it appends to the list
+    with an atomic add on an R32I image, and compute.shader declares float images only."""
+    if "tiles" not in _SHADERS:
+        from .global_sdf import GlobalSDF
+        from .resources import SceneResources, glsl
+
+        info = compute.new_info()
+        GlobalSDF.declare(info, SceneResources.declare(info, 0))
+        info.image(0, 'R32F', 'FLOAT_2D', 'out_image', qualifiers={'WRITE'})
+        info.image(1, FORMAT, 'FLOAT_2D', 'vl_faces_out', qualifiers={'WRITE'})
+        info.image(2, 'R32F', 'FLOAT_2D', 'vl_list_out', qualifiers={'WRITE'})
+        info.image(3, 'R32I', 'INT_2D', 'vl_counter', qualifiers={'READ', 'WRITE'})
+        info.push_constant('INT', 'vl_level')
+        info.push_constant('FLOAT', 'vl_reach')
+        info.push_constant('INT', 'vl_capacity')
+        _SHADERS["tiles"] = compute.create(info, "\n".join(
+            glsl(name) for name in ("sdf_lib.glsl", "global_sdf_lib.glsl", LAYOUT,
+                                    "voxel_lighting_tiles.comp.glsl")))
+    return _SHADERS["tiles"]
