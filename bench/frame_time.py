@@ -225,17 +225,17 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         demo.load_addon()
         scene = build_scene(Path(tmp), args.size, args.extra_objects)
-        scene.lumen.cache_dir = str(Path(tmp) / "cache")
-        scene.lumen.voxel_density = 16.0
+        scene.lumen.bake.cache_dir = str(Path(tmp) / "cache")
+        scene.lumen.bake.voxel_density = 16.0
         t = time.perf_counter()
         bpy.ops.lumen.bake()
         bake_seconds = time.perf_counter() - t
         from lumen_gi.gpu_shaders import engine
 
         scene.render.engine = "LUMEN_GI"
-        scene.lumen.gi_quality = args.quality
-        scene.lumen.render_frames = 1
-        scene.lumen.bounces = 1
+        scene.lumen.engine.render_quality = args.quality
+        scene.lumen.engine.render_frames = 1
+        scene.lumen.engine.bounces = 1
         ours = time_renders(args.repeat)
         R = engine.LAST_RENDER
         if "error" in R:
@@ -251,7 +251,7 @@ def main():
         if args.viewport:
             import viewport_harness
             vw, vh = args.viewport
-            scene.lumen.viewport_gi_quality = args.quality
+            scene.lumen.engine.viewport_quality = args.quality
             def gi_state(i):
                 R = engine.LAST_RENDER
                 t = R.get("gi_timings", {})
@@ -259,11 +259,11 @@ def main():
             for label, ps, texels in (("Pixel Size 1", "1", 0), ("Pixel Size 2", "2", 0),
                                       ("Pixel Size 2, no cache budget", "2", 1 << 30)):
                 scene.render.preview_pixel_size = ps
-                scene.lumen.cache_texels_per_frame = texels
+                scene.lumen.engine.cache_texels_per_frame = texels
                 out = viewport_harness.run(scene, engine.LumenGIRenderEngine, vw, vh,
                                            redraws=args.repeat + 1, on_redraw=gi_state)
                 viewport[label] = (out["seconds"], out["after"])
-            scene.lumen.cache_texels_per_frame = 0
+            scene.lumen.engine.cache_texels_per_frame = 0
         eevee_id = [i.identifier for i in
                     bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
                     if i.identifier.startswith("BLENDER_EEVEE")][0]

@@ -24,7 +24,7 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
     lumen             bpy.ops.lumen.bake(), then LUMEN_GI, every setting at its default (what a
                       user gets without touching anything; per-object settings too: the roof is
                       not two-sided)
-    lumen_high        the same with gi_quality='HIGH', render_frames=16, bounces=3
+    lumen_high        the same with render_quality='HIGH', render_frames=16, bounces=3
     lumen_ssgi        GI Method SSGI (screen-space GI on an HZB, lecture 21), Medium, 8 frames
     lumen_rsm         GI Method RSM (reflective shadow maps, one bounce), Medium, 8 frames
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
@@ -73,13 +73,14 @@ WARMUP_SIZE = 32
 BLACK = 1e-4                          # luminance under which a Cycles pixel counts as black
 EPS = 0.01                            # relMSE denominator term
 LUM = np.array([0.2126, 0.7152, 0.0722])
-# lumen: every setting at its default (what a user gets); lumen_high: the High preset
-LUMEN_HIGH_SETTINGS = (("gi_quality", "HIGH"), ("render_frames", 16), ("bounces", 3),
+# lumen: every setting at its default (what a user gets); lumen_high: the High preset. Overrides
+# are scene.lumen.engine's properties
+LUMEN_HIGH_SETTINGS = (("render_quality", "HIGH"), ("render_frames", 16), ("bounces", 3),
                        ("gi_method", "LUMEN"))
-# the lecture's other methods on the same G-buffer and direct light (scene.lumen.gi_method)
-LUMEN_SSGI_SETTINGS = (("gi_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
+# the lecture's other methods on the same G-buffer and direct light (scene.lumen.engine.gi_method)
+LUMEN_SSGI_SETTINGS = (("render_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
                        ("gi_method", "SSGI"))
-LUMEN_RSM_SETTINGS = (("gi_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
+LUMEN_RSM_SETTINGS = (("render_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
                       ("gi_method", "RSM"))
 
 
@@ -454,9 +455,9 @@ def run_lumen(ctx, overrides=()):
 
     scene = ctx["scene"]
     notes = []
-    settings = getattr(scene, "lumen", None)
+    settings = getattr(getattr(scene, "lumen", None), "engine", None)
     if settings is None:
-        raise RuntimeError("scene.lumen is missing: the add-on is not registered")
+        raise RuntimeError("scene.lumen.engine is missing: the add-on is not registered")
     for attr, value in overrides:
         if hasattr(settings, attr):
             try:
@@ -471,7 +472,8 @@ def run_lumen(ctx, overrides=()):
         result = bpy.ops.lumen.bake()
     bake_seconds = time.perf_counter() - t
     if result != {'FINISHED'}:
-        raise RuntimeError(f"lumen.bake returned {sorted(result)}: {settings.last_status}")
+        raise RuntimeError(f"lumen.bake returned {sorted(result)}: "
+                           f"{scene.lumen.last_bake.status}")
     scene.render.engine = "LUMEN_GI"
     engine = lumen_engine()
     engine.KEEP_IMAGES = True        # hidden_drawn reads the G-buffer positions
@@ -491,8 +493,8 @@ def run_lumen(ctx, overrides=()):
     seen = hidden_drawn(scene, R.get("position"))
     if seen:
         notes.append(seen)
-    notes.append(f"bake {settings.last_objects} objects, {settings.last_bricks} bricks, "
-                 f"{settings.last_cards} cards")
+    last = scene.lumen.last_bake
+    notes.append(f"bake {last.objects} objects, {last.bricks} bricks, {last.cards} cards")
     if compile_s >= 0.005:
         notes.append(f"warm-up compile {compile_s:.2f} s")
     frame = {k: round(v, 3) for k, v in R.items()
@@ -699,7 +701,7 @@ def main(argv=None):
             say(f"[{name}] skipped: {exc}")
             continue
         common_setup(scene, args.size)
-        scene.lumen.cache_dir = str(out / "lumen_cache" / name)
+        scene.lumen.bake.cache_dir = str(out / "lumen_cache" / name)
         ctx = dict(scene=scene, out=out, log=log, samples=args.cycles_samples,
                    digest=scene_digest(scene), eevee_defaults=dict(
                        use_raytracing=scene.eevee.use_raytracing))

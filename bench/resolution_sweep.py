@@ -40,10 +40,10 @@ def main():
         from lumen_gi.gpu_shaders import engine
 
         scene = frame_time.build_scene(Path(tmp), 256)
-        scene.lumen.cache_dir = str(Path(tmp) / "cache")
-        scene.lumen.voxel_density = 16.0
+        scene.lumen.bake.cache_dir = str(Path(tmp) / "cache")
+        scene.lumen.bake.voxel_density = 16.0
         bpy.ops.lumen.bake()
-        scene.lumen.viewport_gi_quality = args.quality
+        scene.lumen.engine.viewport_quality = args.quality
         eevee_id = [i.identifier for i in
                     bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
                     if i.identifier.startswith("BLENDER_EEVEE")][0]

@@ -40,8 +40,8 @@ def main(argv=None):
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.lumen.voxel_density = 4.0
-    scene.lumen.cache_dir = str(Path(bpy.app.tempdir) / "staleness_cost")
+    scene.lumen.bake.voxel_density = 4.0
+    scene.lumen.bake.cache_dir = str(Path(bpy.app.tempdir) / "staleness_cost")
     # a UV sphere of 32 x 16 has 960 triangles; each subdivision level multiplies by 4
     per = args.triangles / args.objects
     level = max(0, round(math.log(max(per / 960.0, 1.0), 4)))
@@ -61,7 +61,7 @@ def main(argv=None):
     cam.rotation_euler = (1.1, 0.0, 0.0)
     scene.camera = cam
     scene.render.engine = "LUMEN_GI"
-    scene.lumen.gi_quality = scene.lumen.viewport_gi_quality = "OFF"
+    scene.lumen.engine.render_quality = scene.lumen.engine.viewport_quality = "OFF"
     t = time.perf_counter()
     bpy.ops.lumen.bake()
     print(f"{args.objects} objects, {sum(len(o.data.loop_triangles) for o in objs):,} triangles, "

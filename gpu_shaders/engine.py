@@ -16,7 +16,7 @@ It writes
     Normal           world normal
 (Blender 5.0's own names, so the passes line up with Cycles' in the compositor and in EXRs).
 
-Debug views (`scene.lumen.debug_view`, N-panel and Render Properties) replace what Combined
+Debug views (`scene.lumen.engine.debug_view`, Render Properties) replace what Combined
 shows: COMBINED, NORMAL, ALBEDO, DIRECT, INDIRECT; the SDF trace alone: DEPTH (hit distance),
 STEPS (heat map), HYBRID (green: mesh-SDF hit, blue: global-SDF hit); the surface cache seen
 through the cards: SC_FINAL, SC_ALBEDO, SC_NORMAL, SC_DIRECT, SC_INDIRECT, CARDS (a colour per
@@ -40,7 +40,7 @@ It works headless: Blender gives a RenderEngine with bl_use_gpu_context a GPU co
 background mode too (Mesa llvmpipe).
 
 The bake comes from the bake operator's memory (operators.bake_op.LAST_BAKES, by scene name)
-or else from the scene's cache folder (scene.lumen.cache_dir, resolved like the operators do).
+or else from the scene's cache folder (scene.lumen.bake.cache_dir, resolved like the operators do).
 """
 from __future__ import annotations
 
@@ -144,9 +144,14 @@ def steps_heat(steps: np.ndarray, full: float = STEPS_FULL_SCALE) -> np.ndarray:
     return rgba
 
 
+def engine_settings(scene):
+    """The scene's engine settings (`scene.lumen.engine`); None without the add-on's properties,
+    and then gi_settings / gi_methods.from_scene give their defaults."""
+    return getattr(getattr(scene, "lumen", None), "engine", None)
+
+
 def debug_view(scene) -> str:
-    settings = getattr(scene, "lumen", None)
-    view = getattr(settings, "debug_view", "COMBINED") if settings is not None else "COMBINED"
+    view = getattr(engine_settings(scene), "debug_view", "COMBINED")
     if view == "COMBINED" and scene.get(VIEW_PROPERTY) == "DEPTH":
         view = "DEPTH"
     return view
@@ -260,8 +265,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         LAST_RENDER["gpu_bytes"] = MEMORY[scene.name]
         LAST_RENDER["shown"] = img
         return Frame({}, img)
-    gi_cfg = gi_settings.from_scene(scene.lumen, viewport=not final)
-    method, method_notes = gi_methods.from_scene(scene.lumen)    # LUMEN, SSGI or RSM
+    gi_cfg = gi_settings.from_scene(engine_settings(scene), viewport=not final)
+    method, method_notes = gi_methods.from_scene(engine_settings(scene))   # LUMEN, SSGI or RSM
     sky = state.sky
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
     gbuf = gbuffer.render_gbuffer(objects, view_proj, width, height)
@@ -372,7 +377,7 @@ def _hybrid_trace(state, scene, cam_pos, inv_vp, width, height, clip_end):
     from . import gi, gi_settings
     from .screen_probes import trace_view
 
-    cfg = gi_settings.from_scene(scene.lumen)
+    cfg = gi_settings.from_scene(engine_settings(scene))
     if not cfg.enabled:
         cfg = gi_settings.settings("MEDIUM")
     g = gi._global_sdf(state, cfg)

@@ -1,5 +1,5 @@
-"""The render setting GI Method (`scene.lumen.gi_method`): which technique of lecture 21 brings
-the indirect light, on the same G-buffer, direct light and composite.
+"""The render setting GI Method (`scene.lumen.engine.gi_method`): which technique of lecture 21
+brings the indirect light, on the same G-buffer, direct light and composite.
 
     LUMEN  gi.py: surface cache, global SDF, screen probes (the default)
     SSGI   ssgi.py: HZB screen rays reading last frame's lit image; what the screen shows only
@@ -12,7 +12,8 @@ pass (its SDF-occluded sky light, as with GI Off), so their misses bring nothing
 counted once. `indirect_light` returns what gi.indirect_light does (the E_indirect texture and the
 numbers frame() records), so composite.composite works unchanged. Each method keeps its textures
 and history on the engine's SceneState (`state.gi_methods`), freed with it.
-bpy-free: `from_scene` reads plain attributes.
+bpy-free: `from_scene` reads plain attributes; MethodSettings' defaults are the properties' defaults
+(operators/properties.py reads them from here).
 """
 from __future__ import annotations
 
@@ -37,15 +38,16 @@ class MethodSettings:
     rsm_samples: int = 64          # RSM texels gathered per pixel per frame
 
 
-def from_scene(scene_settings) -> tuple:
-    """(MethodSettings, notes): a method not built yet renders with LUMEN, with a note saying so."""
-    s = scene_settings
-    method = str(getattr(s, "gi_method", "LUMEN"))
+def from_scene(engine_settings) -> tuple:
+    """(MethodSettings, notes) from the scene's engine settings (`scene.lumen.engine`, or anything
+    with those attributes): a method not built yet renders with LUMEN, with a note saying so."""
+    s = engine_settings
+    d = MethodSettings()
+    method = str(getattr(s, "gi_method", d.method))
     notes = []
     if method not in BUILT:
         notes.append(f"GI Method {method} is not built yet: rendering with Lumen")
         method = "LUMEN"
-    d = MethodSettings()
     return MethodSettings(
         method=method, ssgi_rays=int(getattr(s, "ssgi_rays", d.ssgi_rays)),
         ssgi_steps=int(getattr(s, "ssgi_steps", d.ssgi_steps)),

@@ -1,6 +1,8 @@
 """Global illumination settings of the preview engine: quality presets and the scene's controls
 (no bpy, no gpu: `from_scene` reads plain attributes, so scripts and tests can pass any object).
 
+The scene's engine settings (`scene.lumen.engine`, operators/properties.py) take their defaults
+from `GISettings()` and CACHE_TEXELS_PER_FRAME here, so each default is stated once.
 A preset sets the per-frame budgets; the scene's `bounces` and `render_frames` say how much an
 F12 render accumulates:
     probe_tile       pixels per screen probe side (lecture: 16)
@@ -24,6 +26,7 @@ PRESETS = {
     "HIGH": dict(probe_tile=8, probe_res=8, gsdf_n=64, gsdf_voxel=0.1, history=16, sc_tiles=64),
 }
 QUALITIES = ("OFF",) + tuple(PRESETS)
+CACHE_TEXELS_PER_FRAME = 0         # viewport surface-cache texels per frame (0: the preset's)
 
 
 @dataclass(frozen=True)
@@ -63,17 +66,19 @@ def settings(quality: str = "MEDIUM", **overrides) -> GISettings:
     return replace(GISettings(quality=quality, **base), **overrides)
 
 
-def from_scene(scene_settings, viewport: bool = False) -> GISettings:
-    """GISettings from a scene's `lumen` property group (or anything with those attributes):
-    the render quality for F12, the viewport quality (if it has one) for the viewport."""
-    q = getattr(scene_settings, "gi_quality", "MEDIUM")
+def from_scene(engine_settings, viewport: bool = False) -> GISettings:
+    """GISettings from a scene's engine settings (`scene.lumen.engine`, or anything with those
+    attributes): the render quality for F12, the viewport quality for the viewport."""
+    d = GISettings()
+    s = engine_settings
+    q = getattr(s, "render_quality", d.quality)
     if viewport:
-        q = getattr(scene_settings, "viewport_gi_quality", q)
+        q = getattr(s, "viewport_quality", q)
     extra = {}
-    texels = int(getattr(scene_settings, "cache_texels_per_frame", 0) or 0)
+    texels = int(getattr(s, "cache_texels_per_frame", CACHE_TEXELS_PER_FRAME) or 0)
     if texels > 0:
         extra["sc_tiles"] = -(-texels // 1024)
-    return settings(q, bounces=int(getattr(scene_settings, "bounces", 3)),
-                    render_frames=int(getattr(scene_settings, "render_frames", 8)),
-                    gather=str(getattr(scene_settings, "gi_gather", "PROBES")),
-                    voxel_lighting=bool(getattr(scene_settings, "voxel_lighting", True)), **extra)
+    return settings(q, bounces=int(getattr(s, "bounces", d.bounces)),
+                    render_frames=int(getattr(s, "render_frames", d.render_frames)),
+                    gather=str(getattr(s, "gi_gather", d.gather)),
+                    voxel_lighting=bool(getattr(s, "voxel_lighting", d.voxel_lighting)), **extra)

@@ -37,7 +37,7 @@ def cancels(event) -> bool:
 
 
 def settings_from(scene) -> BakeSettings:
-    s = scene.lumen
+    s = scene.lumen.bake
     return BakeSettings(voxel_density=float(s.voxel_density), max_resolution=int(s.max_resolution),
                         texel_density=float(s.texel_density), texel_budget=int(s.texel_budget))
 
@@ -105,7 +105,7 @@ def scene_cache_folder(scene) -> Path:
     //lumen_cache/{scene}) with {scene} standing for the scene's name made safe for a folder,
     resolved as resolve_folder does (an unsaved file's // goes under the system temp folder).
     A path without {scene} is the user's and is kept as it is."""
-    raw = (scene.lumen.cache_dir or "").strip() or DEFAULT_CACHE_DIR
+    raw = (scene.lumen.bake.cache_dir or "").strip() or DEFAULT_CACHE_DIR
     return resolve_folder(raw.replace(SCENE_TOKEN, folder_name(scene.name)))
 
 
@@ -125,19 +125,19 @@ def failure_message(exc: BaseException) -> str:
 
 
 def record_bake(scene, bake, status: str):
-    """Store `bake` as the scene's last bake and copy its stats into `scene.lumen`."""
+    """Store `bake` as the scene's last bake and copy its stats into `scene.lumen.last_bake`."""
     stats = bake.stats()
-    s = scene.lumen
-    s.last_objects = min(stats["objects"], INT_MAX)
-    s.last_unique_meshes = min(stats["unique_meshes"], INT_MAX)
-    s.last_bricks = min(stats["bricks"], INT_MAX)
-    s.last_bytes = min(stats["bytes"], INT_MAX)
-    s.last_reused = min(stats["reused"], INT_MAX)
-    s.last_cards = min(int(stats["cards"]), INT_MAX)
-    s.last_texels = min(int(stats["texels"]), INT_MAX)
-    s.last_coverage = min(max(float(stats["coverage"]), 0.0), 1.0)
-    s.last_seconds = float(stats["seconds"])
-    s.last_status = status
+    s = scene.lumen.last_bake
+    s.objects = min(stats["objects"], INT_MAX)
+    s.unique_meshes = min(stats["unique_meshes"], INT_MAX)
+    s.bricks = min(stats["bricks"], INT_MAX)
+    s.bytes = min(stats["bytes"], INT_MAX)
+    s.reused = min(stats["reused"], INT_MAX)
+    s.cards = min(int(stats["cards"]), INT_MAX)
+    s.texels = min(int(stats["texels"]), INT_MAX)
+    s.coverage = min(max(float(stats["coverage"]), 0.0), 1.0)
+    s.seconds = float(stats["seconds"])
+    s.status = status
     LAST_BAKES[scene.name] = bake
 
 
@@ -225,7 +225,7 @@ class LUMEN_OT_bake(bpy.types.Operator):
         if not isinstance(exc, (SceneBakeError, CacheError, BakeCancelled)):
             traceback.print_exception(exc)   # unexpected: keep the trace for bug reports
         if scene is not None:
-            scene.lumen.last_status = f"Bake failed: {msg}"
+            scene.lumen.last_bake.status = f"Bake failed: {msg}"
         self.report({'ERROR'}, f"Lumen bake failed: {msg}")
         return {'CANCELLED'}
 
@@ -274,7 +274,7 @@ class LUMEN_OT_bake(bpy.types.Operator):
             self.report({'ERROR'}, f"Lumen bake: scene '{job.scene_name}' no longer exists")
             return {'CANCELLED'}
         if isinstance(job.error, BakeCancelled):
-            scene.lumen.last_status = "Bake cancelled"
+            scene.lumen.last_bake.status = "Bake cancelled"
             self.report({'WARNING'}, "Lumen bake cancelled; the cache was not changed")
             return {'CANCELLED'}
         if job.error is not None:

@@ -33,7 +33,7 @@ class LUMEN_OT_export_cache(bpy.types.Operator):
         return {'RUNNING_MODAL'}
 
     def _fail(self, scene, msg):
-        scene.lumen.last_status = f"Export failed: {msg}"
+        scene.lumen.last_bake.status = f"Export failed: {msg}"
         self.report({'ERROR'}, f"Lumen export failed: {msg}")
         return {'CANCELLED'}
 
@@ -55,8 +55,8 @@ class LUMEN_OT_export_cache(bpy.types.Operator):
             return self._fail(scene, failure_message(exc))
         if LAST_BAKES.get(scene.name) is not bake:
             record_bake(scene, bake, "")
-        scene.lumen.last_status = f"Exported {len(bake.instances)} objects to {folder}"
-        self.report({'INFO'}, scene.lumen.last_status)
+        scene.lumen.last_bake.status = f"Exported {len(bake.instances)} objects to {folder}"
+        self.report({'INFO'}, scene.lumen.last_bake.status)
         return {'FINISHED'}
 
 

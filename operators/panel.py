@@ -1,8 +1,18 @@
-"""The Lumen tab of the 3D viewport sidebar (N-panel): settings, bake, stats, export, atlas."""
+"""The extension's panels, where Blender's engines put theirs.
+
+3D viewport sidebar (N-panel), Lumen tab: Lumen GI (Bake button or progress, estimate, export,
+atlas) with sub-panels Bake Settings (scene.lumen.bake), Object (the active mesh's object.lumen)
+and Last Bake (scene.lumen.last_bake, and what changed since).
+Render Properties, with the Lumen GI engine chosen (as EEVEE's Sampling > Viewport / Render):
+Lumen GI > Viewport, Render, GI Method (a sub-panel per method, shown for the chosen one: the
+MethodPanel subclasses), Debug (debug view, GPU memory). All read scene.lumen.engine.
+"""
 import bpy
 
 from ..lumen_addon.estimate import texel_budget_text
 from .bake_op import RUNNING, cached_estimate, human_bytes
+
+ENGINE = 'LUMEN_GI'
 
 
 class VIEW3D_PT_lumen(bpy.types.Panel):
@@ -13,11 +23,7 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
         scene = context.scene
-        s = scene.lumen
-
         job = RUNNING.get(scene.name)
         if job is not None:
             layout.progress(factor=job.fraction, type='BAR',
@@ -25,53 +31,77 @@ class VIEW3D_PT_lumen(bpy.types.Panel):
         else:
             layout.operator("lumen.bake", icon='RENDER_STILL')
             draw_estimate(layout, context)
+        row = layout.row(align=True)
+        row.operator("lumen.export_cache", icon='EXPORT')
+        row.operator("lumen.open_atlas", icon='IMAGE_DATA')
 
+
+class _SidebarChild:
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "Lumen"
+    bl_parent_id = "VIEW3D_PT_lumen"
+
+
+class VIEW3D_PT_lumen_bake(_SidebarChild, bpy.types.Panel):
+    bl_label = "Bake Settings"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        s = context.scene.lumen.bake
         col = layout.column()
         col.prop(s, "voxel_density")
         col.prop(s, "max_resolution")
+        col = layout.column()
         col.prop(s, "texel_density")
         col.prop(s, "texel_budget")
         col.label(text=texel_budget_text(s.texel_budget))
-        col.prop(s, "cache_dir")
+        layout.prop(s, "cache_dir")
 
+
+class VIEW3D_PT_lumen_object(_SidebarChild, bpy.types.Panel):
+    bl_label = "Object"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
         obj = context.object
-        box = layout.box()
-        if obj is not None and obj.type == 'MESH':
-            box.label(text=obj.name, icon='OBJECT_DATA')
-            box.prop(obj.lumen, "resolution_scale")
-            box.prop(obj.lumen, "two_sided")
-        else:
-            box.label(text="Select a mesh for per-object settings", icon='INFO')
+        if obj is None or obj.type != 'MESH':
+            layout.label(text="Select a mesh for per-object settings", icon='INFO')
+            return
+        layout.label(text=obj.name, icon='OBJECT_DATA')
+        col = layout.column()
+        col.prop(obj.lumen, "resolution_scale")
+        col.prop(obj.lumen, "two_sided")
 
-        box = layout.box()
-        box.label(text="Last Bake", icon='INFO')
-        grid = box.column(align=True)
-        for label, value in (("Objects", str(s.last_objects)),
-                             ("Unique meshes", str(s.last_unique_meshes)),
-                             ("Reused", str(s.last_reused)),
-                             ("Bricks", str(s.last_bricks)),
-                             ("Size", human_bytes(s.last_bytes)),
-                             ("Cards", str(s.last_cards)),
-                             ("Texels", f"{s.last_texels:,}"),
-                             ("Coverage", f"{s.last_coverage:.1%}"),
-                             ("Seconds", f"{s.last_seconds:.2f}")):
+
+class VIEW3D_PT_lumen_last_bake(_SidebarChild, bpy.types.Panel):
+    bl_label = "Last Bake"
+
+    def draw(self, context):
+        layout = self.layout
+        scene = context.scene
+        s = scene.lumen.last_bake
+        grid = layout.column(align=True)
+        for label, value in (("Objects", str(s.objects)),
+                             ("Unique meshes", str(s.unique_meshes)),
+                             ("Reused", str(s.reused)),
+                             ("Bricks", str(s.bricks)),
+                             ("Size", human_bytes(s.bytes)),
+                             ("Cards", str(s.cards)),
+                             ("Texels", f"{s.texels:,}"),
+                             ("Coverage", f"{s.coverage:.1%}"),
+                             ("Seconds", f"{s.seconds:.2f}")):
             row = grid.split(factor=0.5)
             row.label(text=label)
             row.label(text=value)
-        if s.last_status:
-            box.label(text=s.last_status)
+        if s.status:
+            layout.label(text=s.status)
         for i, text in enumerate(stale_lines(scene)):
-            box.label(text=text, icon='ERROR' if i == 0 else 'BLANK1')
-
-        if scene.render.engine == 'LUMEN_GI':
-            box = layout.box()
-            box.label(text="Preview Engine", icon='SHADING_RENDERED')
-            draw_gi_settings(box, s, scene.render)
-            box.prop(s, "debug_view")
-            draw_memory(box, scene)
-
-        layout.operator("lumen.export_cache", icon='EXPORT')
-        layout.operator("lumen.open_atlas", icon='IMAGE_DATA')
+            layout.label(text=text, icon='ERROR' if i == 0 else 'BLANK1')
 
 
 def draw_estimate(layout, context):
@@ -101,30 +131,6 @@ def stale_lines(scene, limit: int = 5) -> list:
     return [head] + names[:limit] + more
 
 
-def draw_gi_settings(layout, s, render=None):
-    col = layout.column()
-    col.prop(s, "viewport_gi_quality")
-    col.prop(s, "cache_texels_per_frame")
-    if render is not None:      # Blender's own viewport setting, used by Cycles and EEVEE too
-        col.prop(render, "preview_pixel_size", text="Viewport Pixel Size")
-    col.prop(s, "gi_quality")
-    sub = col.column()
-    sub.active = s.gi_quality != 'OFF'
-    sub.prop(s, "gi_method")
-    if s.gi_method in ('LPV', 'VXGI'):
-        sub.label(text="Not built yet: renders with Lumen", icon='INFO')
-    sub.prop(s, "bounces")
-    sub.prop(s, "render_frames")
-    if s.gi_method == 'SSGI':
-        for name in ("ssgi_rays", "ssgi_steps", "ssgi_thickness", "ssgi_reuse"):
-            sub.prop(s, name)
-    elif s.gi_method == 'RSM':
-        sub.prop(s, "rsm_resolution")
-        sub.prop(s, "rsm_samples")
-    else:
-        sub.prop(s, "gi_gather")
-
-
 def draw_memory(layout, scene):
     """GPU bytes per resource of the last frame, grouped by stage (SDF, cards, global SDF, probes)."""
     from ..gpu_shaders.engine import MEMORY
@@ -148,29 +154,144 @@ def draw_memory(layout, scene):
         row.label(text=human_bytes(value))
 
 
-class RENDER_PT_lumen_gi(bpy.types.Panel):
-    """Render properties of the Lumen GI engine: GI quality, bounces, F12 accumulation."""
+class _RenderPanel:
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
     bl_context = "render"
-    bl_label = "Lumen GI"
-    COMPAT_ENGINES = {'LUMEN_GI'}
+    COMPAT_ENGINES = {ENGINE}
 
     @classmethod
     def poll(cls, context):
         return context.engine in cls.COMPAT_ENGINES
 
-    def draw(self, context):
+    def begin(self, context):
+        """The layout, split as Blender's own render panels are, and scene.lumen.engine."""
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        s = context.scene.lumen
-        draw_gi_settings(layout, s, context.scene.render)
+        return layout, context.scene.lumen.engine
+
+
+class RENDER_PT_lumen_gi(_RenderPanel, bpy.types.Panel):
+    """Render properties of the Lumen GI engine; its sub-panels hold the settings."""
+    bl_label = "Lumen GI"
+
+    def draw(self, context):
+        pass
+
+
+class RENDER_PT_lumen_gi_viewport(_RenderPanel, bpy.types.Panel):
+    bl_label = "Viewport"
+    bl_parent_id = "RENDER_PT_lumen_gi"
+
+    def draw(self, context):
+        layout, s = self.begin(context)
+        col = layout.column()
+        col.prop(s, "viewport_quality", text="Quality")
+        col.prop(s, "cache_texels_per_frame")
+        # Blender's own viewport setting, which Cycles and EEVEE use too
+        col.prop(context.scene.render, "preview_pixel_size", text="Pixel Size")
+
+
+class RENDER_PT_lumen_gi_render(_RenderPanel, bpy.types.Panel):
+    bl_label = "Render"
+    bl_parent_id = "RENDER_PT_lumen_gi"
+
+    def draw(self, context):
+        layout, s = self.begin(context)
+        col = layout.column()
+        col.prop(s, "render_quality", text="Quality")
+        sub = col.column()
+        sub.active = s.render_quality != 'OFF'
+        sub.prop(s, "bounces")
+        sub.prop(s, "render_frames", text="Frames")
+
+
+class RENDER_PT_lumen_gi_method(_RenderPanel, bpy.types.Panel):
+    bl_label = "GI Method"
+    bl_parent_id = "RENDER_PT_lumen_gi"
+
+    def draw(self, context):
+        layout, s = self.begin(context)
+        layout.active = gi_on(s)
+        layout.prop(s, "gi_method", text="Method")
+        if s.gi_method in ('LPV', 'VXGI'):
+            layout.label(text="Not built yet: renders with Lumen", icon='INFO')
+
+
+def gi_on(s) -> bool:
+    """Whether the viewport or the render brings bounced light (the method panels matter)."""
+    return s.viewport_quality != 'OFF' or s.render_quality != 'OFF'
+
+
+class MethodPanel(_RenderPanel):
+    """A sub-panel of GI Method shown only while its METHOD is the chosen one (as EEVEE's
+    sub-panels poll on their feature). A new method adds a subclass with METHOD and draw."""
+    bl_parent_id = "RENDER_PT_lumen_gi_method"
+    METHOD = ""
+
+    @classmethod
+    def poll(cls, context):
+        return (context.engine in cls.COMPAT_ENGINES
+                and context.scene.lumen.engine.gi_method == cls.METHOD)
+
+    def begin(self, context):
+        layout, s = _RenderPanel.begin(self, context)
+        layout.active = gi_on(s)
+        return layout, s
+
+
+class RENDER_PT_lumen_gi_lumen(MethodPanel, bpy.types.Panel):
+    bl_label = "Lumen"
+    METHOD = 'LUMEN'
+
+    def draw(self, context):
+        layout, s = self.begin(context)
+        layout.prop(s, "gi_gather")
+
+
+class RENDER_PT_lumen_gi_ssgi(MethodPanel, bpy.types.Panel):
+    bl_label = "Screen Space (SSGI)"
+    METHOD = 'SSGI'
+
+    def draw(self, context):
+        layout, s = self.begin(context)
+        col = layout.column()
+        col.prop(s, "ssgi_rays", text="Rays per Pixel")
+        col.prop(s, "ssgi_steps", text="Steps")
+        col.prop(s, "ssgi_thickness", text="Thickness")
+        col.prop(s, "ssgi_reuse", text="Ray Reuse")
+
+
+class RENDER_PT_lumen_gi_rsm(MethodPanel, bpy.types.Panel):
+    bl_label = "Reflective Shadow Maps"
+    METHOD = 'RSM'
+
+    def draw(self, context):
+        layout, s = self.begin(context)
+        col = layout.column()
+        col.prop(s, "rsm_resolution", text="Resolution")
+        col.prop(s, "rsm_samples", text="Samples")
+
+
+class RENDER_PT_lumen_gi_debug(_RenderPanel, bpy.types.Panel):
+    bl_label = "Debug"
+    bl_parent_id = "RENDER_PT_lumen_gi"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout, s = self.begin(context)
         layout.prop(s, "debug_view")
         draw_memory(layout, context.scene)
 
 
-_CLASSES = (VIEW3D_PT_lumen, RENDER_PT_lumen_gi)
+# Parents before their children (Blender requires it); the order is the drawing order.
+SIDEBAR_PANELS = (VIEW3D_PT_lumen, VIEW3D_PT_lumen_bake, VIEW3D_PT_lumen_object,
+                  VIEW3D_PT_lumen_last_bake)
+RENDER_PANELS = (RENDER_PT_lumen_gi, RENDER_PT_lumen_gi_viewport, RENDER_PT_lumen_gi_render,
+                 RENDER_PT_lumen_gi_method, RENDER_PT_lumen_gi_lumen, RENDER_PT_lumen_gi_ssgi,
+                 RENDER_PT_lumen_gi_rsm, RENDER_PT_lumen_gi_debug)
+_CLASSES = SIDEBAR_PANELS + RENDER_PANELS
 
 
 def register():

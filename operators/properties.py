@@ -1,78 +1,181 @@
-"""Scene and object settings for the bake (`scene.lumen`, `object.lumen`).
+"""Scene and object settings (`scene.lumen`, `object.lumen`), in three groups under the scene's:
 
-The `last_*` scene properties are written by the bake operator only; they live in the .blend so
-the panel still shows what the cache on disk holds after the file is reopened.
+    scene.lumen.bake       what the bake makes (LumenBakeSettings): read by the bake operator
+    scene.lumen.engine     how the Lumen GI engine renders (LumenEngineSettings): viewport and F12
+                           apart (viewport_quality / render_quality, as Cycles' preview_samples /
+                           samples), the GI method and its settings, the debug view
+    scene.lumen.last_bake  what the last bake made (LumenLastBake): written by the bake and export
+                           operators only; it lives in the .blend so the panel still shows what
+                           the cache on disk holds after the file is reopened
+
+Every default comes from the bpy-free dataclass that uses it (lumen_addon.bake.BakeSettings and
+ObjectInput, gpu_shaders.gi_settings.GISettings, gpu_shaders.gi_methods.MethodSettings), so it is
+stated once; tests/blender/test_properties.py checks each. Files saved with the flat layout of
+before are moved into these groups on load (legacy_settings.py).
 """
+from dataclasses import fields
+
 import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
                        StringProperty)
 
-from ..lumen_addon.sdf import DEFAULT_MAX_RESOLUTION, HARD_MAX_RESOLUTION
+from ..gpu_shaders.gi_methods import MethodSettings
+from ..gpu_shaders.gi_settings import CACHE_TEXELS_PER_FRAME, GISettings
+from ..lumen_addon.bake import BakeSettings, ObjectInput
+from ..lumen_addon.sdf import HARD_MAX_RESOLUTION
 
 INT_MAX = 2 ** 31 - 1   # IntProperty is 32-bit; stats beyond it are clamped for display
 # One cache folder per scene: baking one scene of a .blend never replaces another scene's cache.
 DEFAULT_CACHE_DIR = "//lumen_cache/{scene}"
 
+BAKE = BakeSettings()
+GI = GISettings()
+METHOD = MethodSettings()
+OBJECT = {f.name: f.default for f in fields(ObjectInput)}
+
 
 GI_QUALITY_ITEMS = (
-    ('OFF', "Off", "Direct light and SDF sky occlusion only"),
-    ('LOW', "Low", "A 16 px screen-probe grid, 32^3 global SDF clipmaps"),
-    ('MEDIUM', "Medium", "A 16 px screen-probe grid, 48^3 clipmaps"),
-    ('HIGH', "High", "An 8 px screen-probe grid, 64^3 clipmaps"))
+    ('OFF', "Off", "No bounced light: direct light and sky shadowing only (fastest)"),
+    ('LOW', "Low", "Coarse bounced light, quickest: enough for layout and blocking"),
+    ('MEDIUM', "Medium", "Balanced detail and speed"),
+    ('HIGH', "High", "Four times Medium's bounced-light samples across the screen: sharper "
+     "around small objects and where they touch, slower"))
 
 
 GI_METHOD_ITEMS = (
-    ('LUMEN', "Lumen", "Surface cache, signed distance fields and screen probes: light from "
-     "everything, on or off screen, with many bounces"),
-    ('SSGI', "Screen Space (SSGI)", "Rays through the depth buffer, reading the last frame's "
-     "image: fast and detailed, but blind to anything the screen does not show"),
+    ('LUMEN', "Lumen", "Bounced light from everything in the scene, on or off screen, "
+     "including glowing materials and the sky, with several bounces: the most complete"),
+    ('SSGI', "Screen Space (SSGI)", "Bounced light from what the screen shows only: fast and "
+     "detailed, but light from anything off screen or hidden behind objects is missing"),
     ('RSM', "Reflective Shadow Maps", "One bounce of the lamps' light from what each lamp "
      "sees, ignoring what stands in the bounced light's way (emission does not bounce)"),
     ('LPV', "Light Propagation Volumes", "Not built yet: renders with Lumen"),
     ('VXGI', "Voxel Cone Tracing (VXGI)", "Not built yet: renders with Lumen"))
 
 
-class LumenSceneSettings(bpy.types.PropertyGroup):
+class LumenBakeSettings(bpy.types.PropertyGroup):
+    """Inputs of the bake (`scene.lumen.bake`): shape and surface-lighting detail, cache folder."""
     __slots__ = ()   # Blender 5 warns about property groups that accept arbitrary attributes
 
     voxel_density: FloatProperty(
-        name="Voxel Density", description="SDF voxels per metre at an object resolution scale of 1",
-        default=20.0, min=0.1, soft_max=100.0)
+        name="Voxel Density",
+        description="How finely the bake records each object's shape, in samples per metre. "
+                    "Higher keeps thin parts and narrow gaps from leaking or blocking light, but "
+                    "the bake takes longer and needs more memory",
+        default=BAKE.voxel_density, min=0.1, soft_max=100.0)
     max_resolution: IntProperty(
-        name="Max Resolution", description="Largest SDF resolution per axis of one mesh (mip 0)",
-        default=DEFAULT_MAX_RESOLUTION, min=14, max=HARD_MAX_RESOLUTION)
+        name="Max Resolution",
+        description="Most shape samples along any one object's side. Large objects stop getting "
+                    "finer past it, which keeps their bake time and memory in check; raise it for "
+                    "big objects whose small details leak light",
+        default=BAKE.max_resolution, min=14, max=HARD_MAX_RESOLUTION)
     texel_density: FloatProperty(
-        name="Texel Density", description="Mesh card texels per metre (surface-cache atlas)",
-        default=20.0, min=1.0, max=200.0)
+        name="Texel Density",
+        description="How sharp the light stored on surfaces is, in texels per metre. Higher "
+                    "shows bounced light and colour bleeding from smaller details, at more GPU "
+                    "memory and more lighting work per frame",
+        default=BAKE.texel_density, min=1.0, max=200.0)
     texel_budget: IntProperty(
-        name="Texel Budget", description="Most atlas texels for the whole scene; cards are scaled "
-                                          "down (with a warning) when they would need more",
-        default=2048 * 2048, min=4096)
+        name="Texel Budget",
+        description="Most texels all objects' stored surface lighting may use together. When the "
+                    "scene needs more, every object's is made blurrier to fit (with a warning). "
+                    "The panel shows the atlas size and GPU memory it means",
+        default=BAKE.texel_budget, min=4096)
     cache_dir: StringProperty(
         name="Cache Folder",
-        description="Where the bake is written. // is the .blend file's folder and {scene} this "
-                    "scene's name, so by default each scene of the file keeps its own cache",
-        default=DEFAULT_CACHE_DIR, subtype='DIR_PATH')
+        description="Where the bake is written and read from. // is the .blend file's folder and "
+                    "{scene} this scene's name, so by default each scene of the file keeps its "
+                    "own bake",
+        default=DEFAULT_CACHE_DIR, subtype='DIR_PATH', options={'PATH_SUPPORTS_BLEND_RELATIVE'})
 
-    last_objects: IntProperty(name="Objects", description="Objects in the last bake", min=0)
-    last_unique_meshes: IntProperty(name="Unique Meshes",
-                                    description="Distinct meshes baked (instances share one)", min=0)
-    last_bricks: IntProperty(name="Bricks", description="SDF bricks kept, all mips", min=0)
-    last_bytes: IntProperty(name="Bytes", description="Size of the SDF bricks and indirection tables",
-                            min=0)
-    last_reused: IntProperty(name="Reused", min=0,
-                             description="Meshes of the last bake taken unchanged from the bake before")
-    last_cards: IntProperty(name="Cards", description="Mesh cards in the last bake", min=0)
-    last_texels: IntProperty(name="Texels", description="Atlas texels used by the mesh cards",
-                             min=0)
-    last_coverage: FloatProperty(
-        name="Coverage", description="Smallest share of a mesh's surface seen by its cards",
-        min=0.0, max=1.0, subtype='FACTOR')
-    last_seconds: FloatProperty(name="Seconds", description="Duration of the last bake", min=0.0)
-    last_status: StringProperty(name="Status", description="Outcome of the last bake or export")
 
+class LumenEngineSettings(bpy.types.PropertyGroup):
+    """How the Lumen GI engine renders (`scene.lumen.engine`): the viewport's settings and the F12
+    render's apart, the GI method and its settings, the debug view."""
+    __slots__ = ()
+
+    viewport_quality: EnumProperty(
+        name="Viewport Quality",
+        description="How much work the viewport spends on bounced light each frame. Higher is "
+                    "sharper and steadier while you move, but slower. A still viewport keeps "
+                    "refining toward the final render",
+        items=GI_QUALITY_ITEMS, default=GI.quality)
+    cache_texels_per_frame: IntProperty(
+        name="Cache Texels per Frame",
+        description="Viewport only: how much of the light stored on surfaces is brought up to "
+                    "date each frame, most visible and oldest first. Lower keeps big scenes "
+                    "fast, but changes in the lighting spread more slowly; 0 uses the Viewport "
+                    "Quality's amount (16k, 32k or 64k texels). Final renders update all of it",
+        default=CACHE_TEXELS_PER_FRAME, min=0, soft_max=1 << 20, step=1024)
+    render_quality: EnumProperty(
+        name="Render Quality",
+        description="How much work a final render (F12) spends on bounced light in each of its "
+                    "frames. Higher is sharper around small objects, but slower",
+        items=GI_QUALITY_ITEMS, default=GI.quality)
+    bounces: IntProperty(
+        name="Bounces",
+        description="How many times light bounces from surface to surface in a final render. "
+                    "More brightens deep corners and rooms lit through an opening; each bounce "
+                    "adds render time. The viewport keeps adding bounces while it is still",
+        default=GI.bounces, min=1, max=16)
+    render_frames: IntProperty(
+        name="Render Frames",
+        description="Frames a final render averages, each with its samples slightly moved. More "
+                    "removes blotches and noise from the bounced light; render time grows with it",
+        default=GI.render_frames, min=1, max=256)
+    gi_method: EnumProperty(
+        name="GI Method",
+        description="Which technique brings the bounced light. Lumen sees the whole scene; the "
+                    "others are the older methods it is compared with: faster, each with the "
+                    "limits it describes. Direct light and the output are the same for all",
+        items=GI_METHOD_ITEMS, default=METHOD.method)
+    gi_gather: EnumProperty(
+        name="Final Gather",
+        description="How each pixel collects bounced light with Lumen",
+        items=(('PROBES', "Screen Probes", "Few rays, shared between neighbouring pixels and "
+                "smoothed: fast, the normal choice"),
+               ('PIXEL', "Per Pixel (Reference)", "64 rays for every pixel each frame: slow, a "
+                "reference to check the probes against")),
+        default=GI.gather)
+    ssgi_rays: IntProperty(
+        name="SSGI Rays per Pixel",
+        description="Rays each pixel sends per frame to find bounced light on screen. More is "
+                    "less noisy and proportionally slower (neighbouring pixels' rays are shared "
+                    "as well)",
+        default=METHOD.ssgi_rays, min=1, max=32)
+    ssgi_steps: IntProperty(
+        name="SSGI Steps",
+        description="How far a ray may search across the screen before it gives up. More finds "
+                    "light from farther away and takes longer; fewer misses distant bounces "
+                    "(Lumen's screen trace uses 50)",
+        default=METHOD.ssgi_steps, min=4, max=256)
+    ssgi_thickness: FloatProperty(
+        name="SSGI Thickness",
+        description="How thick objects are assumed to be behind what the screen shows. Too "
+                    "thin lets bounced light slip behind objects; too thick makes thin objects "
+                    "block light like solid walls",
+        default=METHOD.ssgi_thickness, min=0.001, soft_max=2.0, subtype='DISTANCE', unit='LENGTH')
+    ssgi_reuse: IntProperty(
+        name="SSGI Ray Reuse",
+        description="How far neighbouring pixels share their rays, as a radius (1: 3x3 pixels). "
+                    "Higher is smoother at no cost, but blurs the light in corners and where "
+                    "objects touch",
+        default=METHOD.ssgi_reuse, min=0, max=3)
+    rsm_resolution: IntProperty(
+        name="RSM Resolution",
+        description="Detail of the picture each light keeps of what it lights, in texels per "
+                    "side (a point light keeps six). Higher brings bounced light from smaller lit "
+                    "details, at more GPU memory and time",
+        default=METHOD.rsm_resolution, min=16, max=4096)
+    rsm_samples: IntProperty(
+        name="RSM Samples",
+        description="Points of the lights' pictures each pixel collects bounced light from per "
+                    "frame. More is smoother and slower (the original method used 400)",
+        default=METHOD.rsm_samples, min=1, max=4096)
     debug_view: EnumProperty(
-        name="Debug View", description="What the Lumen GI engine shows in Combined",
+        name="Debug View",
+        description="Show one stage of the lighting instead of the finished image, to find out "
+                    "where a problem comes from (Combined: the finished image)",
         items=(('COMBINED', "Combined", "Lit image: albedo x direct light + emission"),
                ('DEPTH', "Hit Distance", "SDF trace only: hit depth as grey"),
                ('STEPS', "Trace Steps", "SDF trace only: sphere-tracing steps as a heat map"),
@@ -103,55 +206,47 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                 "the voxel lighting, along the camera ray (magenta: no voxel face serves it; such "
                 "hits read the surface cache)")),
         default='COMBINED')
-    gi_quality: EnumProperty(
-        name="Render Quality", description="Budgets of the global illumination passes in F12 "
-        "renders", items=GI_QUALITY_ITEMS, default='MEDIUM')
-    viewport_gi_quality: EnumProperty(
-        name="Viewport Quality", description="Budgets of the global illumination passes in the "
-        "viewport (as Render Quality, the still viewport converges to the F12 image)",
-        items=GI_QUALITY_ITEMS, default='MEDIUM')
-    gi_gather: EnumProperty(
-        name="Final Gather", description="How pixels gather indirect light",
-        items=(('PROBES', "Screen Probes", "Lumen's screen probes: few rays, filtered, SH"),
-               ('PIXEL', "Per Pixel (Reference)", "64 rays per pixel per frame through the same "
-                "tracer and surface cache: slow, a check of the probes")),
-        default='PROBES')
-    gi_method: EnumProperty(
-        name="GI Method", description="Which technique brings the indirect light (the lecture's "
-        "methods side by side, on the same G-buffer, direct light and output)",
-        items=GI_METHOD_ITEMS, default='LUMEN')
-    ssgi_rays: IntProperty(
-        name="SSGI Rays per Pixel", description="Screen-space rays each pixel traces per frame "
-        "(its neighbours' rays are reused as well)", default=4, min=1, max=32)
-    ssgi_steps: IntProperty(
-        name="SSGI Steps", description="Most cells of the depth pyramid a ray visits before it "
-        "gives up (Lumen's screen trace: 50)", default=50, min=4, max=256)
-    ssgi_thickness: FloatProperty(
-        name="SSGI Thickness", description="How thick surfaces are assumed behind what the "
-        "screen shows: a ray that passes farther behind one goes on", default=0.1, min=0.001,
-        soft_max=2.0, subtype='DISTANCE', unit='LENGTH')
-    ssgi_reuse: IntProperty(
-        name="SSGI Ray Reuse", description="Pixels around each pixel whose rays it reuses, as a "
-        "radius (1: 3x3): more samples for free, blurring contact detail", default=1, min=0,
-        max=3)
-    rsm_resolution: IntProperty(
-        name="RSM Resolution", description="Texels per side of each light's reflective shadow "
-        "map (a point light has six, a cube)", default=256, min=16, max=4096)
-    rsm_samples: IntProperty(
-        name="RSM Samples", description="Shadow-map texels each pixel gathers light from per "
-        "frame (the original paper used 400)", default=64, min=1, max=4096)
-    bounces: IntProperty(
-        name="Bounces", description="Surface-cache bounces an F12 render converges before it "
-        "gathers (the viewport keeps bouncing every frame)", default=3, min=1, max=16)
-    cache_texels_per_frame: IntProperty(
-        name="Cache Texels per Frame", description="Viewport: surface-cache lighting texels "
-        "relit per frame, in tiles of 32x32, the most visible, nearest and oldest first (0: "
-        "the Viewport Quality's 16k / 32k / 64k). Caps the viewport's surface-cache cost however "
-        "many cards the scene has; F12 relights every texel", default=0, min=0, soft_max=1 << 20,
-        step=1024)
-    render_frames: IntProperty(
-        name="Render Frames", description="F12 temporal accumulation: jittered GI frames averaged",
-        default=8, min=1, max=256)
+
+
+class LumenLastBake(bpy.types.PropertyGroup):
+    """What the last bake made (`scene.lumen.last_bake`); written by the bake and export
+    operators only."""
+    __slots__ = ()
+
+    objects: IntProperty(name="Objects", description="Objects the last bake included", min=0)
+    unique_meshes: IntProperty(
+        name="Unique Meshes", min=0,
+        description="Distinct shapes baked: copies and instances of one mesh share one")
+    reused: IntProperty(
+        name="Reused", min=0,
+        description="Meshes taken unchanged from the bake before, which saved their bake time")
+    bricks: IntProperty(
+        name="Bricks", min=0,
+        description="Blocks of shape samples kept near surfaces, all levels of detail: memory "
+                    "grows with them")
+    bytes: IntProperty(name="Bytes", description="Memory of the baked shapes", min=0)
+    cards: IntProperty(
+        name="Cards", min=0,
+        description="Surface patches that store the light on the objects' surfaces")
+    texels: IntProperty(name="Texels", description="Texels of stored surface light in use", min=0)
+    coverage: FloatProperty(
+        name="Coverage", min=0.0, max=1.0, subtype='FACTOR',
+        description="Share of the least-covered mesh's surface that stores light. Where none is "
+                    "stored, bounced light from that part is missing")
+    seconds: FloatProperty(name="Seconds", description="How long the last bake took", min=0.0)
+    status: StringProperty(name="Status", description="Outcome of the last bake or export")
+
+
+class LumenSceneSettings(bpy.types.PropertyGroup):
+    """`scene.lumen`: the three groups."""
+    __slots__ = ()
+
+    bake: PointerProperty(type=LumenBakeSettings, name="Bake",
+                          description="What the bake makes and where it keeps it")
+    engine: PointerProperty(type=LumenEngineSettings, name="Engine",
+                            description="How the Lumen GI engine renders, viewport and final")
+    last_bake: PointerProperty(type=LumenLastBake, name="Last Bake",
+                               description="What the last bake made")
 
 
 class LumenObjectSettings(bpy.types.PropertyGroup):
@@ -159,14 +254,20 @@ class LumenObjectSettings(bpy.types.PropertyGroup):
 
     two_sided: BoolProperty(
         name="Two Sided",
-        description="The mesh has no inside (foliage, cards, thin walls): the SDF is unsigned and "
-                    "thickened by half a voxel so light cannot leak through")
+        description="For thin open surfaces with no inside (leaves, paper, single-sided walls): "
+                    "baked as a thin sheet that still blocks light. Leave off for closed "
+                    "objects, whose inside is then known, so light cannot leak through them",
+        default=OBJECT["two_sided"])
     resolution_scale: FloatProperty(
-        name="Resolution Scale", description="Multiplies the scene voxel density for this object",
-        default=1.0, min=0.01, max=16.0)
+        name="Resolution Scale",
+        description="Detail of this object's baked shape relative to the Voxel Density: above 1 "
+                    "for small or intricate objects that leak light or lose shadows, below 1 for "
+                    "large plain ones, to save bake time and memory",
+        default=OBJECT["resolution_scale"], min=0.01, max=16.0)
 
 
-_CLASSES = (LumenSceneSettings, LumenObjectSettings)
+_CLASSES = (LumenBakeSettings, LumenEngineSettings, LumenLastBake, LumenSceneSettings,
+            LumenObjectSettings)
 
 
 def register():

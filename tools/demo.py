@@ -165,7 +165,7 @@ def main(argv=None) -> int:
         addon = load_addon()
         scene = build_demo_scene()
     if args.voxel_density:
-        scene.lumen.voxel_density = args.voxel_density
+        scene.lumen.bake.voxel_density = args.voxel_density
     out = Path(args.out).resolve() / "cache"
 
     from lumen_gi.lumen_addon.cache import CacheError, read_cache   # the package loaded above
@@ -174,7 +174,8 @@ def main(argv=None) -> int:
         for op, kwargs in ((bpy.ops.lumen.bake, {}), (bpy.ops.lumen.export_cache, {"filepath": str(out)})):
             result = op(**kwargs)
             if result != {'FINISHED'}:
-                raise RuntimeError(f"{op.idname_py()} returned {result}: {scene.lumen.last_status}")
+                raise RuntimeError(f"{op.idname_py()} returned {result}: "
+                                   f"{scene.lumen.last_bake.status}")
         read_cache(out)   # what was exported reads back and validates
     except (RuntimeError, CacheError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -62,12 +62,12 @@ def main(argv=None) -> int:
     import demo   # only its scene builder: plain bpy calls
 
     scene = demo.build_demo_scene(factory_reset=False)   # keeps the enabled extension
-    scene.lumen.cache_dir = str(out / "cache")
+    scene.lumen.bake.cache_dir = str(out / "cache")
     baked = bpy.ops.lumen.bake()
     report["bake"] = sorted(baked)
-    report["bake_status"] = scene.lumen.last_status
+    report["bake_status"] = scene.lumen.last_bake.status
     if baked != {"FINISHED"}:
-        return fail(f"bake returned {sorted(baked)}: {scene.lumen.last_status}")
+        return fail(f"bake returned {sorted(baked)}: {scene.lumen.last_bake.status}")
 
     scene.render.engine = "LUMEN_GI"
     scene.render.resolution_x, scene.render.resolution_y = args.size

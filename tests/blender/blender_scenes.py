@@ -12,9 +12,9 @@ def empty_scene(voxel_density: float = 4.0, cache_dir: str | None = None):
     """A new empty file with low-resolution bake settings (fast tests)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
-    scene.lumen.voxel_density = voxel_density
+    scene.lumen.bake.voxel_density = voxel_density
     if cache_dir is not None:
-        scene.lumen.cache_dir = str(cache_dir)
+        scene.lumen.bake.cache_dir = str(cache_dir)
     return scene
 
 
@@ -112,9 +112,10 @@ def snapshot(folder) -> dict:
 
 
 def scene_stats(scene) -> dict:
-    s = scene.lumen
-    return {k: getattr(s, k) for k in ("last_objects", "last_unique_meshes", "last_bricks",
-                                       "last_bytes", "last_reused", "last_seconds", "last_status")}
+    """The scene's last-bake statistics (scene.lumen.last_bake) as a dict."""
+    s = scene.lumen.last_bake
+    return {k: getattr(s, k) for k in ("objects", "unique_meshes", "bricks", "bytes", "reused",
+                                       "seconds", "status")}
 
 
 # -- materials and images -----------------------------------------------------------------------
@@ -183,3 +184,56 @@ def add_uv_map(obj, name: str, scale=(1.0, 1.0), offset=(0.0, 0.0)):
     uv = base.reshape(-1, 2) * np.float32(scale) + np.float32(offset)
     layer.uv.foreach_set("vector", uv.ravel())
     return layer
+
+
+# -- panels -------------------------------------------------------------------------------------
+
+class RecordingLayout:
+    """A stand-in for bpy.types.UILayout (headless Blender has no UI to draw into): records
+    ('prop', name) / ('operator', idname) / ('label', text) / ('progress', text) and checks every
+    property and operator name against the real registered RNA, so a typo fails the test."""
+    use_property_split = use_property_decorate = False
+    active = enabled = True
+
+    def __init__(self, log):
+        self.log = log
+
+    def _child(self, *a, **k):
+        return RecordingLayout(self.log)
+    column = row = box = split = _child
+
+    def prop(self, data, name, **k):
+        assert name in data.bl_rna.properties, name
+        self.log.append(("prop", name))
+
+    def operator(self, idname, **k):
+        mod, name = idname.split(".")
+        getattr(getattr(bpy.ops, mod), name).get_rna_type()
+        self.log.append(("operator", idname))
+
+    def label(self, **k):
+        self.log.append(("label", k.get("text")))
+
+    def progress(self, **k):
+        self.log.append(("progress", k.get("text")))
+
+
+def draw_panels(classes, context=None) -> dict:
+    """Draw each panel class (parents before children, as registered) whose poll passes and whose
+    parent was drawn, as Blender would; returns {class name: [(kind, name), ...]}."""
+    context = context or bpy.context
+    drawn = {}
+    for cls in classes:
+        parent = getattr(cls, "bl_parent_id", "")
+        if parent and parent not in drawn:
+            continue
+        if hasattr(cls, "poll") and not cls.poll(context):
+            continue
+        log = []
+        # Panels cannot be instantiated outside Blender's UI: draw with a stand-in `self` that
+        # has the class's methods (begin, ...) and a recording layout.
+        methods = {k: v for c in reversed(cls.__mro__) if c.__module__ == cls.__module__
+                   for k, v in vars(c).items() if callable(v) and not k.startswith("__")}
+        cls.draw(type("P", (), {**methods, "layout": RecordingLayout(log)})(), context)
+        drawn[cls.__name__] = log
+    return drawn

@@ -18,10 +18,10 @@ after = snapshot({cache!r})
 back = read_cache({cache!r})
 stats_after = scene_stats(scene)
 emit(good=good, result=result, error=error, unchanged=before == after,
-     stats_kept=all(stats_before[k] == stats_after[k] for k in stats_before if k != "last_status"),
-     status=scene.lumen.last_status, objects=[i.name for i in back.instances],
+     stats_kept=all(stats_before[k] == stats_after[k] for k in stats_before if k != "status"),
+     status=scene.lumen.last_bake.status, objects=[i.name for i in back.instances],
      mip0=[m.mips[0].resolution for m in back.meshes.values()],
-     max_resolution=scene.lumen.max_resolution)
+     max_resolution=scene.lumen.bake.max_resolution)
 """
 
 
@@ -66,7 +66,7 @@ def test_bad_scene_is_refused_and_previous_cache_kept(blender, tmp_path, setup, 
 
 
 def test_huge_resolution_request_is_clamped_with_a_warning(blender, tmp_path):
-    r, res = run_case(blender, tmp_path, "scene.lumen.voxel_density = 1e9")
+    r, res = run_case(blender, tmp_path, "scene.lumen.bake.voxel_density = 1e9")
     assert r["result"] == ["FINISHED"] and r["error"] is None
     assert "Warning: Box: resolution" in res.stdout and "clamped" in res.stdout
     assert max(max(m) for m in r["mip0"]) <= r["max_resolution"]
@@ -78,6 +78,6 @@ def test_unwritable_cache_folder_is_reported_and_nothing_changes(blender, tmp_pa
     # cannot be created by anyone.
     afile = tmp_path / "afile"
     afile.write_text("not a folder")
-    r, _ = run_case(blender, tmp_path, f"scene.lumen.cache_dir = {str(afile / 'cache')!r}")
+    r, _ = run_case(blender, tmp_path, f"scene.lumen.bake.cache_dir = {str(afile / 'cache')!r}")
     assert_refused(r, str(afile / "cache"))
     assert afile.read_text() == "not a folder"

@@ -13,7 +13,7 @@ def test_estimate_counts_what_the_bake_extracts_and_warns_when_large(blender):
         from lumen_gi.operators.panel import draw_estimate
 
         scene = demo.build_demo_scene()
-        scene.lumen.voxel_density = 6.0
+        scene.lumen.bake.voxel_density = 6.0
         dg = bpy.context.evaluated_depsgraph_get()
         est = bake_op.bake_estimate(scene, dg)
         objects, _ = extract_scene(dg)

@@ -52,12 +52,12 @@ def test_bake_shares_instances_uses_evaluated_meshes_and_writes_cache(blender, t
     assert inst["Ball"] == inst["Ball.dup"] != inst["Ball.raw"]
     assert inst["Props.A/Cone.001"] == inst["Props.B/Cone.001"]
     stats = r["stats"]
-    assert stats["last_objects"] == 6
-    assert stats["last_unique_meshes"] == 4 < stats["last_objects"]
-    assert stats["last_bricks"] == r["cache_stats"]["bricks"] > 0
-    assert stats["last_bytes"] == r["cache_stats"]["bytes"] > 0
-    assert stats["last_seconds"] > 0
-    assert stats["last_status"].startswith("Baked 6 objects") and str(cache) in stats["last_status"]
+    assert stats["objects"] == 6
+    assert stats["unique_meshes"] == 4 < stats["objects"]
+    assert stats["bricks"] == r["cache_stats"]["bricks"] > 0
+    assert stats["bytes"] == r["cache_stats"]["bytes"] > 0
+    assert stats["seconds"] > 0
+    assert stats["status"].startswith("Baked 6 objects") and str(cache) in stats["status"]
 
 
 def test_geometry_nodes_instances_bake_once_with_their_own_matrices(blender, tmp_path):
@@ -84,7 +84,7 @@ def test_geometry_nodes_instances_bake_once_with_their_own_matrices(blender, tmp
     assert {tuple(o[2]) for o in instances} == {(x, y, 0.0) for x in (-2.0, 2.0) for y in (-2.0, 2.0)}
     assert all(o[1] == 20 and o[0].startswith("Scatter/") and o[3] == 0.5 for o in instances)
     assert len({r["meshes"][o[0]] for o in instances}) == 1       # one bake for all four
-    assert r["stats"]["last_objects"] == 5 and r["stats"]["last_unique_meshes"] == 2
+    assert r["stats"]["objects"] == 5 and r["stats"]["unique_meshes"] == 2
 
 
 def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tmp_path):
@@ -97,23 +97,23 @@ def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tm
         out = {{}}
         # No bake in memory yet: export bakes first, then writes only the export folder.
         out["export1"] = bake(bpy.ops.lumen.export_cache, filepath={str(exp1)!r})
-        out["export1_objects"] = scene.lumen.last_objects
+        out["export1_objects"] = scene.lumen.last_bake.objects
         out["cache_after_export"] = (read_cache({str(exp1)!r}).stats()["objects"])
-        out["bake1"] = bake(); out["reused1"] = scene.lumen.last_reused
+        out["bake1"] = bake(); out["reused1"] = scene.lumen.last_bake.reused
         files1 = snapshot({str(cache)!r})
-        out["bake2"] = bake(); out["reused2"] = scene.lumen.last_reused
+        out["bake2"] = bake(); out["reused2"] = scene.lumen.last_bake.reused
         files2 = snapshot({str(cache)!r})
         out["same_arrays"] = sorted(k for k in files1 if k.endswith(".npz")) == \\
             sorted(k for k in files2 if k.endswith(".npz"))
         box.location.x = 5                      # a transform is not a mesh change
-        out["bake3"] = bake(); out["reused3"] = scene.lumen.last_reused
+        out["bake3"] = bake(); out["reused3"] = scene.lumen.last_bake.reused
         ball.lumen.resolution_scale = 2.0       # this one must bake again
-        out["bake4"] = bake(); out["reused4"] = scene.lumen.last_reused
+        out["bake4"] = bake(); out["reused4"] = scene.lumen.last_bake.reused
         out["export2"] = bake(bpy.ops.lumen.export_cache, filepath={str(exp2)!r})
         a, b = read_cache({str(cache)!r}), read_cache({str(exp2)!r})
         out["export_matches_cache"] = sorted(a.meshes) == sorted(b.meshes)
         out["box_x"] = [i.matrix_world[0][3] for i in b.instances if i.name == "Box"]
-        out["status"] = scene.lumen.last_status
+        out["status"] = scene.lumen.last_bake.status
         from lumen_gi.operators.bake_op import LAST_BAKES
         out["remembered"] = sorted(LAST_BAKES)
         empty_scene()                           # another file: its "Scene" is not this one
@@ -123,8 +123,8 @@ def test_export_bakes_when_needed_and_rebake_reuses_unchanged_meshes(blender, tm
         # A reopened file has no bake in memory: the cache on disk seeds the reuse.
         scene = empty_scene(cache_dir={str(cache)!r})
         cube("Box"); sphere("Ball", location=(2, 0, 0)); cube("New", size=0.5, location=(0, 3, 0))
-        emit(reopened=bake(), reused_from_disk=scene.lumen.last_reused,
-             unique_after_reopen=scene.lumen.last_unique_meshes)
+        emit(reopened=bake(), reused_from_disk=scene.lumen.last_bake.reused,
+             unique_after_reopen=scene.lumen.last_bake.unique_meshes)
     """)
     r = res.result
     for key in ("export1", "bake1", "bake2", "bake3", "bake4", "export2"):
@@ -184,52 +184,59 @@ def test_worker_job_bakes_and_cancels_without_bpy(blender):
 
 
 def test_panel_draws_existing_properties_and_operators(blender):
-    """Headless Blender has no UI to draw into; a recording layout checks every name the panel
-    uses against the real registered RNA (catches typos that would blank the panel)."""
+    """Headless Blender has no UI to draw into; a recording layout (blender_scenes.draw_panels)
+    checks every name the panels use against the real registered RNA (catches typos that would
+    blank a panel). The sidebar holds the bake, its settings, the object's and the last bake's as
+    sub-panels; the engine's settings are in Render Properties, shown with the engine chosen."""
     res = blender("""
-        from lumen_gi.operators.panel import VIEW3D_PT_lumen
+        from lumen_gi.operators import panel
         scene = empty_scene()
         cube("Box")
-
-        class Layout:
-            use_property_split = use_property_decorate = False
-            def __init__(self, log): self.log = log
-            def _child(self, *a, **k): return Layout(self.log)
-            column = row = box = split = _child
-            def prop(self, data, name, **k):
-                assert name in data.bl_rna.properties, name
-                self.log.append(("prop", name))
-            def operator(self, idname, **k):
-                mod, name = idname.split(".")
-                getattr(getattr(bpy.ops, mod), name).get_rna_type()
-                self.log.append(("operator", idname))
-            def label(self, **k): self.log.append(("label", k.get("text")))
-            def progress(self, **k): self.log.append(("progress", k.get("text")))
-
-        log = []
-        VIEW3D_PT_lumen.draw(type("P", (), {"layout": Layout(log)})(), bpy.context)
-        from lumen_gi.operators.panel import RENDER_PT_lumen_gi
-        bpy.context.scene.render.engine = "LUMEN_GI"
-        gi_log = []
-        VIEW3D_PT_lumen.draw(type("P", (), {"layout": Layout(gi_log)})(), bpy.context)
-        render_log = []
-        RENDER_PT_lumen_gi.draw(type("P", (), {"layout": Layout(render_log)})(), bpy.context)
-        emit(log=log, gi_log=gi_log, render_log=render_log, category=VIEW3D_PT_lumen.bl_category,
-             region=VIEW3D_PT_lumen.bl_region_type)
+        side = draw_panels(panel.SIDEBAR_PANELS)
+        render_eevee = draw_panels(panel.RENDER_PANELS)
+        scene.render.engine = "LUMEN_GI"
+        render = draw_panels(panel.RENDER_PANELS)
+        side_gi = draw_panels(panel.SIDEBAR_PANELS)
+        parents = {c.__name__: getattr(c, "bl_parent_id", "") for c in panel._CLASSES}
+        registered = [n for n in parents if not hasattr(bpy.types, n)]
+        emit(side=side, side_gi=side_gi, render_eevee=render_eevee, render=render,
+             parents=parents, registered=registered,
+             closed=sorted(c.__name__ for c in panel._CLASSES
+                           if 'DEFAULT_CLOSED' in getattr(c, "bl_options", set())),
+             category=sorted({c.bl_category for c in panel.SIDEBAR_PANELS}),
+             region=sorted({c.bl_region_type for c in panel.SIDEBAR_PANELS}))
     """)
     r = res.result
-    assert r["category"] == "Lumen" and r["region"] == "UI"
-    names = [name for kind, name in r["log"] if kind in ("prop", "operator")]
-    assert names == ["lumen.bake", "voxel_density", "max_resolution", "texel_density",
-                     "texel_budget", "cache_dir", "resolution_scale", "two_sided",
-                     "lumen.export_cache", "lumen.open_atlas"]
-    labels = [name for kind, name in r["log"] if kind == "label"]
+    assert r["registered"] == [], f"not registered: {r['registered']}"
+    assert r["category"] == ["Lumen"] and r["region"] == ["UI"]
+    props = lambda log: [name for kind, name in log if kind in ("prop", "operator")]
+    side = {k: props(v) for k, v in r["side"].items()}
+    assert side == {"VIEW3D_PT_lumen": ["lumen.bake", "lumen.export_cache", "lumen.open_atlas"],
+                    "VIEW3D_PT_lumen_bake": ["voxel_density", "max_resolution", "texel_density",
+                                             "texel_budget", "cache_dir"],
+                    "VIEW3D_PT_lumen_object": ["resolution_scale", "two_sided"],
+                    "VIEW3D_PT_lumen_last_bake": []}, side
+    assert r["side_gi"] == r["side"]               # the engine's settings are not in the sidebar
+    labels = [name for kind, name in r["side"]["VIEW3D_PT_lumen_last_bake"] if kind == "label"]
     for label in ("Cards", "Texels", "Coverage"):
         assert label in labels
-    gi = ["gi_quality", "bounces", "render_frames", "gi_gather", "debug_view"]
-    for log in (r["gi_log"], r["render_log"]):               # engine chosen: GI controls shown
-        names = [name for kind, name in log if kind == "prop"]
-        assert all(name in names for name in gi), names
+    bake_label = [n for k, n in r["side"]["VIEW3D_PT_lumen_bake"] if k == "label"]
+    assert bake_label == ["= 2048 x 2048 atlas, ~420 MB of GPU memory"]
+    assert r["render_eevee"] == {}                  # another engine: no Lumen GI panels
+    render = {k: props(v) for k, v in r["render"].items()}
+    assert render == {"RENDER_PT_lumen_gi": [],
+                      "RENDER_PT_lumen_gi_viewport": ["viewport_quality", "cache_texels_per_frame",
+                                                      "preview_pixel_size"],
+                      "RENDER_PT_lumen_gi_render": ["render_quality", "bounces", "render_frames"],
+                      "RENDER_PT_lumen_gi_method": ["gi_method"],
+                      "RENDER_PT_lumen_gi_lumen": ["gi_gather"],       # the default method's
+                      "RENDER_PT_lumen_gi_debug": ["debug_view"]}, render
+    p = r["parents"]
+    assert {n for n, parent in p.items() if n.startswith("VIEW3D") and parent} == {
+        "VIEW3D_PT_lumen_bake", "VIEW3D_PT_lumen_object", "VIEW3D_PT_lumen_last_bake"}
+    method_panel = "RENDER_PT_lumen_gi_method"
+    assert p["RENDER_PT_lumen_gi_ssgi"] == p["RENDER_PT_lumen_gi_rsm"] == method_panel
+    assert r["closed"] == ["RENDER_PT_lumen_gi_debug"]
 
 
 def test_paths_starting_with_tilde_mean_the_home_folder(blender, tmp_path):

@@ -15,8 +15,9 @@ def test_bake_records_cards_and_open_atlas_loads_the_layers(blender, tmp_path):
         scene = empty_scene(cache_dir={str(cache)!r})
         box = cube("Box")
         box.data.materials.append(principled("Red", base=(0.8, 0.1, 0.1)))
-        out = {{"bake": bake(), "cards": scene.lumen.last_cards, "texels": scene.lumen.last_texels,
-                "coverage": scene.lumen.last_coverage, "status": scene.lumen.last_status}}
+        last = scene.lumen.last_bake
+        out = {{"bake": bake(), "cards": last.cards, "texels": last.texels,
+                "coverage": last.coverage, "status": last.status}}
         back = read_cache({str(cache)!r})
         albedo, opacity = back.atlas.layers["albedo"], back.atlas.layers["opacity"]
         covered = opacity[..., 0] > 0.5
@@ -77,7 +78,7 @@ def test_open_atlas_without_cache_or_atlas_names_the_folder(blender, tmp_path):
     res = blender(f"""
         scene = empty_scene(cache_dir={str(empty)!r})
         missing = bake(bpy.ops.lumen.open_atlas)
-        scene.lumen.cache_dir = {str(old)!r}
+        scene.lumen.bake.cache_dir = {str(old)!r}
         no_atlas = bake(bpy.ops.lumen.open_atlas)
         emit(missing=missing, no_atlas=no_atlas,
              images=[i.name for i in bpy.data.images if i.name.startswith("Lumen Atlas")])
@@ -94,17 +95,17 @@ def test_texel_settings_reach_the_bake_and_the_budget_warns(blender, tmp_path):
     res = blender(f"""
         scene = empty_scene(cache_dir={str(tmp_path / 'cache')!r})
         cube("Box", size=2.0)
-        scene.lumen.texel_density = 10.0
-        first = bake(); small = scene.lumen.last_texels
-        scene.lumen.texel_density = 40.0
-        second = bake(); large = scene.lumen.last_texels
-        scene.lumen.texel_budget = 4096
+        scene.lumen.bake.texel_density = 10.0
+        first = bake(); small = scene.lumen.last_bake.texels
+        scene.lumen.bake.texel_density = 40.0
+        second = bake(); large = scene.lumen.last_bake.texels
+        scene.lumen.bake.texel_budget = 4096
         cube("Bigger", size=3.0, location=(4, 0, 0))    # new cards: they must fit the budget
         third = bake()
         from lumen_gi.operators.bake_op import settings_from
         s = settings_from(scene)
         emit(runs=[first, second, third], small=small, large=large,
-             settings=[s.texel_density, s.texel_budget], status=scene.lumen.last_status)
+             settings=[s.texel_density, s.texel_budget], status=scene.lumen.last_bake.status)
     """)
     r = res.result
     assert all(run == [["FINISHED"], None] for run in r["runs"]), r["runs"]

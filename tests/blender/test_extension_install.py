@@ -51,10 +51,10 @@ def test_install_enable_and_bake(extension_zip, blender, tmp_path):
             bpy.data.objects.remove(obj)
         bpy.ops.mesh.primitive_cube_add()
         scene = bpy.context.scene
-        scene.lumen.voxel_density = 4.0
-        scene.lumen.cache_dir = {str(tmp_path / "cache")!r}
+        scene.lumen.bake.voxel_density = 4.0
+        scene.lumen.bake.cache_dir = {str(tmp_path / "cache")!r}
         baked = sorted(bpy.ops.lumen.bake())
-        status, objects = scene.lumen.last_status, scene.lumen.last_objects
+        status, objects = scene.lumen.last_bake.status, scene.lumen.last_bake.objects
         wheel_installed = os.path.isdir(os.path.join(site, "embreex"))
         bpy.ops.preferences.addon_disable(module="bl_ext.user_default.lumen_gi")
         unregistered = not any(hasattr(t, n) for t, n in (

@@ -263,10 +263,10 @@ emit(warnings=warnings, no_uv=[objects["NoUV"].uvs is None, mats("NoUV")],
 def test_bad_materials_through_the_operator_report_warnings_and_bake(blender, tmp_path):
     cache = tmp_path / "cache"
     res = blender(bad_scene(tmp_path) + f"""
-bpy.context.scene.lumen.cache_dir = {str(cache)!r}
-bpy.context.scene.lumen.voxel_density = 4.0
+bpy.context.scene.lumen.bake.cache_dir = {str(cache)!r}
+bpy.context.scene.lumen.bake.voxel_density = 4.0
 result, error = bake()
-emit(result=result, error=error, status=bpy.context.scene.lumen.last_status)
+emit(result=result, error=error, status=bpy.context.scene.lumen.last_bake.status)
 """)
     r = res.result
     assert r["result"] == ["FINISHED"], (r["error"], res.explain())

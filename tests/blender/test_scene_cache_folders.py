@@ -19,10 +19,10 @@ def test_each_scene_keeps_its_own_cache_and_f12_reads_it_after_reopening(blender
         cube("BoxA")
         aimed_camera((0.0, -4.0, 2.0))
         a.render.engine = "LUMEN_GI"
-        a.lumen.gi_quality = "OFF"
+        a.lumen.engine.render_quality = "OFF"
         a.render.resolution_x = a.render.resolution_y = 32
         b = bpy.data.scenes.new({B!r})
-        b.lumen.voxel_density = 4.0
+        b.lumen.bake.voxel_density = 4.0
         ball = sphere("BallB", location=(0.0, 0.0, 1.0))
         for c in list(ball.users_collection):
             c.objects.unlink(ball)
@@ -33,7 +33,7 @@ def test_each_scene_keeps_its_own_cache_and_f12_reads_it_after_reopening(blender
             with bpy.context.temp_override(scene=scene, view_layer=scene.view_layers[0]):
                 return bake()
 
-        out = {{"default": a.lumen.cache_dir, "bake_a": bake_scene(a)}}
+        out = {{"default": a.lumen.bake.cache_dir, "bake_a": bake_scene(a)}}
         folder_a, folder_b = scene_cache_folder(a), scene_cache_folder(b)
         files_a = snapshot(folder_a)
         out["bake_b"] = bake_scene(b)

@@ -22,7 +22,7 @@ sun.data.energy = 3.0
 sun.rotation_euler = (0.6, 0.3, 0.0)
 cam = aimed_camera((0.0, -5.0, 4.0), (0.0, 0.0, 0.3))
 scene.render.engine = "LUMEN_GI"
-scene.lumen.gi_quality = "OFF"
+scene.lumen.engine.render_quality = "OFF"
 scene.render.resolution_x = scene.render.resolution_y = 48
 
 out = {}

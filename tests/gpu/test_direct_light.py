@@ -80,7 +80,7 @@ def make_light(kind):
     if kind == "HDRI":
         black = scene.world
         scene.world = hdri_world("courtyard.exr")
-        scene.lumen.gi_quality = "OFF"       # the sky light is then Diffuse Direct, as in Cycles
+        scene.lumen.engine.render_quality = "OFF"   # the sky light is then Diffuse Direct, as in Cycles
         return black
     data = bpy.data.lights.new(kind, kind)
     obj = link(bpy.data.objects.new(kind, data))

@@ -28,9 +28,9 @@ def finish(size, quality="LOW", frames=4, bounces=8):
     scene.render.engine = "LUMEN_GI"
     scene.render.resolution_x = scene.render.resolution_y = size
     scene.render.resolution_percentage = 100
-    scene.lumen.gi_quality = quality
-    scene.lumen.render_frames = frames
-    scene.lumen.bounces = bounces
+    scene.lumen.engine.render_quality = quality
+    scene.lumen.engine.render_frames = frames
+    scene.lumen.engine.bounces = bounces
     res, err = bake()
     assert err is None, err
     bpy.ops.render.render()

@@ -56,11 +56,11 @@ cam.data.lens = 30.0
 scene.render.engine = "LUMEN_GI"
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
-scene.lumen.gi_quality = "LOW"
-scene.lumen.gi_method = "RSM"
-scene.lumen.rsm_resolution = {RES}
-scene.lumen.rsm_samples = 256
-scene.lumen.render_frames = 8
+scene.lumen.engine.render_quality = "LOW"
+scene.lumen.engine.gi_method = "RSM"
+scene.lumen.engine.rsm_resolution = {RES}
+scene.lumen.engine.rsm_samples = 256
+scene.lumen.engine.render_frames = 8
 res, err = bake()
 assert err is None, err
 
@@ -89,11 +89,11 @@ out = {{}}
 for kind in ("SUN", "SPOT", "POINT", "AREA"):
     obj = light(kind)
     # the spot's wide map puts the wall far from the floor's own texels: a noisier estimate
-    scene.lumen.render_frames = {FRAMES!r}[kind]
+    scene.lumen.engine.render_frames = {FRAMES!r}[kind]
     bpy.context.view_layer.update()
     out[kind + "_axis"] = list(-obj.matrix_world.col[2].xyz.normalized())
     for view in ("COMBINED", "RSM_FLUX"):
-        scene.lumen.debug_view = view
+        scene.lumen.engine.debug_view = view
         bpy.ops.render.render()
         R = engine.LAST_RENDER
         assert "error" not in R, R.get("traceback", R.get("error"))
@@ -107,8 +107,8 @@ for kind in ("SUN", "SPOT", "POINT", "AREA"):
             np.save(kind + "_flux.npy", R["shown"])
     if kind == "SUN":          # the viewport: one gather per redraw into its history
         import viewport_harness
-        scene.lumen.debug_view = "COMBINED"
-        scene.lumen.viewport_gi_quality = "LOW"
+        scene.lumen.engine.debug_view = "COMBINED"
+        scene.lumen.engine.viewport_quality = "LOW"
         vp = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 10,
                                   lambda i: list(engine.LAST_RENDER["gi_progress"]))
         out["viewport"] = vp["after"]

@@ -97,12 +97,12 @@ cam.data.lens = 35.0
 scene.render.engine = "LUMEN_GI"
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
-scene.lumen.gi_quality = "LOW"
-scene.lumen.gi_method = "SSGI"
-scene.lumen.ssgi_rays = 8
-scene.lumen.ssgi_thickness = 0.02         # the panel is a plane: no thickness behind it
-scene.lumen.bounces = 2
-scene.lumen.render_frames = 8
+scene.lumen.engine.render_quality = "LOW"
+scene.lumen.engine.gi_method = "SSGI"
+scene.lumen.engine.ssgi_rays = 8
+scene.lumen.engine.ssgi_thickness = 0.02         # the panel is a plane: no thickness behind it
+scene.lumen.engine.bounces = 2
+scene.lumen.engine.render_frames = 8
 res, err = bake()
 assert err is None, err
 bpy.ops.render.render()
@@ -115,7 +115,7 @@ out = dict(method=R["gi_method"], notes=R["notes"], memory=R["gpu_bytes"],
            gi=R["gi_timings"], iterations=R["gi_iterations"], frame=R["frame_seconds"])
 # the viewport: one iteration per redraw into its history, for the same still view
 import viewport_harness
-scene.lumen.viewport_gi_quality = "LOW"
+scene.lumen.engine.viewport_quality = "LOW"
 def redraw(i):
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("error")
@@ -123,17 +123,17 @@ def redraw(i):
 vp = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 12, redraw)
 out["viewport"] = vp["after"]
 np.save("viewport_indirect.npy", engine.LAST_RENDER["indirect"])
-scene.lumen.debug_view = "SSGI_HITS"
+scene.lumen.engine.debug_view = "SSGI_HITS"
 bpy.ops.render.render()
 R = engine.LAST_RENDER
 assert "error" not in R, R.get("traceback", R.get("error"))
 np.save("hits.npy", R["shown"])
-scene.lumen.debug_view = "COMBINED"
+scene.lumen.engine.debug_view = "COMBINED"
 scene.render.resolution_x = scene.render.resolution_y = 24
-scene.lumen.render_frames = 1
-scene.lumen.bounces = 1
+scene.lumen.engine.render_frames = 1
+scene.lumen.engine.bounces = 1
 for method in ("LPV", "VXGI"):
-    scene.lumen.gi_method = method
+    scene.lumen.engine.gi_method = method
     bpy.ops.render.render()
     R = engine.LAST_RENDER
     out[method] = dict(error=R.get("error"), method=R.get("gi_method"), notes=R.get("notes"),
@@ -240,27 +240,18 @@ def test_ssgi_on_a_floor_under_a_lit_panel(tmp_path):
 
 
 PANEL_DRAW = """
-from lumen_gi.operators.panel import RENDER_PT_lumen_gi
-
-class Layout:
-    use_property_split = use_property_decorate = active = False
-    def __init__(self, log): self.log = log
-    def column(self, **k): return Layout(self.log)
-    def prop(self, data, name, **k):
-        assert name in data.bl_rna.properties, name
-        self.log.append(name)
-    def label(self, **k): self.log.append("label: " + k.get("text", ""))
+from lumen_gi.operators.panel import RENDER_PANELS
 
 scene = bpy.context.scene
 scene.render.engine = "LUMEN_GI"
-prop = scene.lumen.bl_rna.properties["gi_method"]
-out = dict(default=scene.lumen.gi_method,
+prop = scene.lumen.engine.bl_rna.properties["gi_method"]
+out = dict(default=scene.lumen.engine.gi_method,
            items={i.identifier: i.description for i in prop.enum_items})
 for method in ("LUMEN", "SSGI", "RSM", "LPV", "VXGI"):
-    scene.lumen.gi_method = method
-    log = []
-    RENDER_PT_lumen_gi.draw(type("P", (), {"layout": Layout(log)})(), bpy.context)
-    out[method] = log
+    scene.lumen.engine.gi_method = method
+    drawn = draw_panels(RENDER_PANELS)
+    out[method] = [n if k == "prop" else f"{k}: {n}" for log in drawn.values() for k, n in log]
+    out[method + "_panels"] = list(drawn)
 emit(**out)
 """
 
@@ -273,7 +264,8 @@ def test_gi_method_setting_and_what_the_render_panel_shows(tmp_path):
     assert list(r["items"]) == ["LUMEN", "SSGI", "RSM", "LPV", "VXGI"]
     assert all(len(d) > 20 for d in r["items"].values())           # plain-language descriptions
     for method in r["items"]:
-        assert "gi_quality" in r[method] and "gi_method" in r[method] and "debug_view" in r[method]
+        assert all(p in r[method] for p in ("render_quality", "viewport_quality", "gi_method",
+                                            "debug_view"))
     ssgi = ("ssgi_rays", "ssgi_steps", "ssgi_thickness", "ssgi_reuse")
     rsm = ("rsm_resolution", "rsm_samples")
     assert all(p in r["SSGI"] for p in ssgi) and not any(p in r["SSGI"] for p in rsm)
@@ -281,3 +273,9 @@ def test_gi_method_setting_and_what_the_render_panel_shows(tmp_path):
     assert "gi_gather" in r["LUMEN"] and "gi_gather" not in r["SSGI"]
     for method in ("LPV", "VXGI"):
         assert "label: Not built yet: renders with Lumen" in r[method]
+    # one sub-panel per built method, drawn only while it is the chosen one
+    subs = {"LUMEN": "RENDER_PT_lumen_gi_lumen", "SSGI": "RENDER_PT_lumen_gi_ssgi",
+            "RSM": "RENDER_PT_lumen_gi_rsm"}
+    for method in r["items"]:
+        shown = [p for p in subs.values() if p in r[method + "_panels"]]
+        assert shown == ([subs[method]] if method in subs else []), (method, shown)

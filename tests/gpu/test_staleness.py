@@ -32,9 +32,9 @@ sun.data.energy = 3.0
 sun.rotation_euler = (0.7, 0.0, 0.6)
 cam = aimed_camera((0.0, -0.5, 7.0), (0.0, 0.0, 0.0))
 scene.render.engine = "LUMEN_GI"
-scene.lumen.gi_quality = scene.lumen.viewport_gi_quality = "LOW"
-scene.lumen.render_frames = 1
-scene.lumen.bounces = 1
+scene.lumen.engine.render_quality = scene.lumen.engine.viewport_quality = "LOW"
+scene.lumen.engine.render_frames = 1
+scene.lumen.engine.bounces = 1
 scene.render.resolution_x = scene.render.resolution_y = 64
 scene.render.resolution_percentage = 100
 res, err = bake()
@@ -65,7 +65,7 @@ res, err = bake()
 assert err is None, err
 out["rebaked"] = f12()
 np.save("rebaked.npy", engine.LAST_RENDER["combined"])
-scene.lumen.gi_quality = "OFF"
+scene.lumen.engine.render_quality = "OFF"
 other.location.x -= 0.3                       # a move is not a change
 out["moved"] = f12()
 edit_vertex(other)

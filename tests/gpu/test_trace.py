@@ -41,7 +41,7 @@ for obj in inputs:    # the scene holds the baked objects (an instance it lacks 
     scene.collection.objects.link(ob)
     ob.matrix_world = mathutils.Matrix(obj.matrix_world.tolist())
 write_cache("cache", bake)
-scene.lumen.cache_dir = str(__import__("pathlib").Path("cache").resolve())
+scene.lumen.bake.cache_dir = str(__import__("pathlib").Path("cache").resolve())
 cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
 scene.collection.objects.link(cam)
 scene.camera = cam
@@ -49,7 +49,7 @@ cam.location = (0.3, -3.5, 1.2)
 cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.0)) - cam.location).to_track_quat("-Z", "Y").to_euler()
 cam.data.clip_end = 20.0
 scene.render.engine = "LUMEN_GI"
-scene.lumen.debug_view = "DEPTH"   # the trace debug view: hit depth as grey
+scene.lumen.engine.debug_view = "DEPTH"   # the trace debug view: hit depth as grey
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 

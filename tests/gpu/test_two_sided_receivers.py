@@ -31,7 +31,7 @@ for label, z in (("on_sample", 0.0), ("midway", 0.025)):
     sun.rotation_euler = (math.radians(40.0), 0.0, 0.0)
     aimed_camera((0.0, -0.5, 3.0), (0.0, 0.0, 0.0))
     scene.render.engine = "LUMEN_GI"
-    scene.lumen.gi_quality = "OFF"
+    scene.lumen.engine.render_quality = "OFF"
     scene.render.resolution_x = scene.render.resolution_y = 48
     res, err = bake()
     assert err is None, err

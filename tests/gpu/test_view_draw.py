@@ -31,8 +31,8 @@ sun.data.energy = 3.0
 sun.rotation_euler = (0.5, 0.3, 0.0)
 cam = aimed_camera((0.0, -5.0, 4.0), (0.0, 0.0, 0.3))
 scene.render.engine = "LUMEN_GI"
-scene.lumen.gi_quality = "LOW"
-scene.lumen.viewport_gi_quality = "LOW"
+scene.lumen.engine.render_quality = "LOW"
+scene.lumen.engine.viewport_quality = "LOW"
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 res, err = bake()
@@ -76,8 +76,8 @@ light_changes = moved[2]["changes"]
 moved = moved[1]
 np.save("moved_albedo.npy", moved["albedo"])
 # a budget of one tile per frame: the update-heat view shows fresh and not-yet-relit tiles
-scene.lumen.cache_texels_per_frame = 1024
-scene.lumen.debug_view = "SC_UPDATES"
+scene.lumen.engine.cache_texels_per_frame = 1024
+scene.lumen.engine.debug_view = "SC_UPDATES"
 out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 6,
                            lambda i: engine.LAST_RENDER["gi_sc_tiles"])
 np.save("heat.npy", engine.LAST_RENDER["shown"])

@@ -41,9 +41,9 @@ scene.camera = cam
 cam.location = (0.0, -5.0, 4.0)
 cam.rotation_euler = (mathutils.Vector((0.0, 0.0, 0.3)) - cam.location).to_track_quat("-Z", "Y").to_euler()
 scene.render.engine = "LUMEN_GI"
-scene.lumen.gi_quality = "LOW"
-scene.lumen.render_frames = 1
-scene.lumen.bounces = 1
+scene.lumen.engine.render_quality = "LOW"
+scene.lumen.engine.render_frames = 1
+scene.lumen.engine.bounces = 1
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 res, err = bake()
@@ -84,7 +84,7 @@ views = {{}}
 for view in ("STEPS", "DEPTH", "NORMAL", "ALBEDO", "DIRECT", "INDIRECT", "HYBRID", "SC_FINAL",
              "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS", "SC_UPDATES", "PROBES",
              "PROBE_FALLBACK", "COMBINED"):
-    scene.lumen.debug_view = view
+    scene.lumen.engine.debug_view = view
     bpy.ops.render.render()
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("traceback", R.get("error"))

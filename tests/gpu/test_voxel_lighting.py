@@ -283,7 +283,7 @@ def served():
                dt=float(np.abs(out["hit"] - ref["hit"])[far].max()))
 
 run_job(served)
-bpy.context.scene.lumen.debug_view = "VOXEL_LIGHTING"
+bpy.context.scene.lumen.engine.debug_view = "VOXEL_LIGHTING"
 bpy.ops.render.render()
 assert "error" not in R, R.get("traceback", R.get("error"))
 np.save("voxel_view.npy", R["shown"])

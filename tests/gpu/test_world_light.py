@@ -59,7 +59,7 @@ res, err = bake()
 assert err is None, err
 out = {{}}
 for quality in ("OFF", "LOW"):
-    scene.lumen.gi_quality = quality
+    scene.lumen.engine.render_quality = quality
     bpy.ops.render.render()
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("traceback", R.get("error"))
@@ -122,7 +122,7 @@ nt.links.new(lp.outputs["Is Camera Ray"], ins["Factor_Float"])
 nt.links.new({s.identifier: s for s in mix.outputs}["Result_Color"], nt.nodes["Background"].inputs["Color"])
 aimed_camera((0.0, -3.0, 0.0))
 scene.render.engine = "LUMEN_GI"
-scene.lumen.gi_quality = "LOW"
+scene.lumen.engine.render_quality = "LOW"
 scene.render.resolution_x = scene.render.resolution_y = 32
 res, err = bake()
 assert err is None, err
