@@ -131,6 +131,14 @@ def stale_lines(scene, limit: int = 5) -> list:
     return [head] + names[:limit] + more
 
 
+# Resource-name prefix (engine MEMORY keys) -> the stage the Debug panel sums it under; the
+# rest are the mesh SDFs. LPV, VXGI and the radiance cache are being built on other branches.
+MEMORY_STAGES = (("cards_", "Cards"), ("global_sdf", "Global SDF"), ("screen_", "Screen targets"),
+                 ("probes_", "Screen probes"), ("lights", "Lights"), ("sky", "Sky"),
+                 ("voxel_lighting", "Voxel lighting"), ("ssgi_", "SSGI"), ("rsm_", "RSM"),
+                 ("lpv_", "LPV"), ("vxgi_", "VXGI"), ("radiance_cache", "Radiance cache"))
+
+
 def draw_memory(layout, scene):
     """GPU bytes per resource of the last frame, grouped by stage (SDF, cards, global SDF, probes)."""
     from ..gpu_shaders.engine import MEMORY
@@ -142,11 +150,8 @@ def draw_memory(layout, scene):
         return
     stages = {}
     for name, value in memory.items():
-        stage = ("Cards" if name.startswith("cards_") else "Global SDF" if name.startswith("global_sdf")
-                 else "Screen targets" if name.startswith("screen_")
-                 else "Screen probes" if name.startswith("probes_") else "Lights" if name == "lights"
-                 else "SSGI" if name.startswith("ssgi_") else "RSM" if name.startswith("rsm_")
-                 else "Mesh SDFs")
+        stage = next((label for prefix, label in MEMORY_STAGES if name.startswith(prefix)),
+                     "Mesh SDFs")
         stages[stage] = stages.get(stage, 0) + value
     for label, value in list(stages.items()) + [("Total", sum(memory.values()))]:
         row = grid.split(factor=0.5)

@@ -195,6 +195,9 @@ def test_panel_draws_existing_properties_and_operators(blender):
         side = draw_panels(panel.SIDEBAR_PANELS)
         render_eevee = draw_panels(panel.RENDER_PANELS)
         scene.render.engine = "LUMEN_GI"
+        from lumen_gi.gpu_shaders.engine import MEMORY
+        MEMORY[scene.name] = {"atlas": 100, "objects": 20, "cards_albedo": 10, "sky": 5,
+                              "voxel_lighting": 7, "lpv_grid": 3}
         render = draw_panels(panel.RENDER_PANELS)
         side_gi = draw_panels(panel.SIDEBAR_PANELS)
         parents = {c.__name__: getattr(c, "bl_parent_id", "") for c in panel._CLASSES}
@@ -231,6 +234,9 @@ def test_panel_draws_existing_properties_and_operators(blender):
                       "RENDER_PT_lumen_gi_method": ["gi_method"],
                       "RENDER_PT_lumen_gi_lumen": ["gi_gather"],       # the default method's
                       "RENDER_PT_lumen_gi_debug": ["debug_view"]}, render
+    memory = [n for k, n in r["render"]["RENDER_PT_lumen_gi_debug"] if k == "label"]
+    assert memory == ["GPU Mesh SDFs", "120 B", "GPU Cards", "10 B", "GPU Sky", "5 B",
+                      "GPU Voxel lighting", "7 B", "GPU LPV", "3 B", "GPU Total", "145 B"], memory
     p = r["parents"]
     assert {n for n, parent in p.items() if n.startswith("VIEW3D") and parent} == {
         "VIEW3D_PT_lumen_bake", "VIEW3D_PT_lumen_object", "VIEW3D_PT_lumen_last_bake"}
