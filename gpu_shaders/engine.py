@@ -271,10 +271,17 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
     gbuf = gbuffer.render_gbuffer(objects, view_proj, width, height)
     t3 = time.perf_counter()
-    out = direct_light.shade(res, gbuf, state.lights, sky, cam_pos, inv_vp, width, height,
-                             sky_cones=direct_light.SKY_CONES
-                             if gi_methods.direct_has_sky(method, gi_cfg.enabled) else 0,
-                             light_texture=state.light_texture)
+    sky_cones = direct_light.SKY_CONES if gi_methods.direct_has_sky(method, gi_cfg.enabled) else 0
+    if final:
+        out = direct_light.shade(res, gbuf, state.lights, sky, cam_pos, inv_vp, width, height,
+                                 sky_cones=sky_cones, light_texture=state.light_texture)
+    else:          # the viewport: a part of the samples per redraw, then kept (Progressive)
+        if changes:
+            state.epoch += 1
+        key = (np.asarray(view_proj, np.float64).tobytes(), width, height, sky_cones,
+               state.epoch, sky.key)
+        out = state.direct.shade(key, res, gbuf, state.lights, sky, cam_pos, inv_vp, width,
+                                 height, sky_cones, state.light_texture)
     t4 = time.perf_counter()
     g = gbuf["textures"]
     textures = {"Combined": out["textures"]["combined"],
@@ -317,6 +324,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
+        direct_part=out.get("part", (0, direct_light.LIGHT_SAMPLES)),
         gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, **gi_info)
     if stale:
         LAST_RENDER["notes"].append(staleness.summary(stale) + ": drawn, but their light and "
@@ -513,6 +521,8 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         if getattr(self, "_state", None) is None:
             self._state = SceneState()
         self._state.stale.mark(edited, materials, images)
+        if len(depsgraph.updates):
+            self._state.epoch += 1     # what was drawn may have changed: direct light again
         LAST_VIEW_UPDATE["flags"] = sorted(flags)
         LAST_VIEW_UPDATE["count"] = LAST_VIEW_UPDATE.get("count", 0) + 1
         if flags:

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from .packing import instance_row, singular
+from .direct_light import Progressive
 from .sky_light import SkyLight
 
 try:                                   # inside the extension package
@@ -80,6 +81,9 @@ class SceneState:
         self.gi_view_key = None      # camera + size of the probes' history
         self.gi_sky = None           # key of the sky maps the GI history was made with
         self.sky = SkyLight()        # the world's maps on the GPU (uploaded when they change)
+        self.direct = Progressive()  # the viewport's direct light, spread over redraws
+        self.epoch = 0               # depsgraph updates seen (engine.view_update) and syncs
+                                     # with changes: what the progressive direct light keys on
         self.bake = None
 
     def plan(self, bake, matrices: dict, lights) -> set:

@@ -4,7 +4,10 @@
  * Inputs: gbuf_position, gbuf_normal, gbuf_albedo, gbuf_emission (gbuffer.glsl), lights
  * (RGBA32F, 4 texels per light row, operators/lights.py; a sun taken out of the world's map is
  * one of them), sky_maps (the world), push constants light_count, cam_pos (world), sky_cones
- * (number of sky occlusion cones), inv_view_proj (camera rays for the background).
+ * (number of sky occlusion cones), inv_view_proj (camera rays for the background),
+ * sample_plan = light_samples + 256 * first + 65536 * take: samples per light, and the part of
+ * them and of the sky cones this dispatch evaluates (first 0, take light_samples: all; one int
+ * keeps the push constants within 128 bytes).
  * Outputs (RGBA32F):
  *   direct_out:   Cycles' "Diffuse Direct" convention: E / pi, E the direct irradiance from the
  *                 lights and the sky (a Lambert BSDF without its albedo); 0 on the background
@@ -17,7 +20,16 @@
  * the sky has in its direction (sky_ray), so a bright zenith blocked by a roof darkens more than
  * the same cone toward a dark horizon.
  */
-vec3 sky_light(vec3 p, vec3 n, int cones)
+/* Cone i of `cones`: Fibonacci points on the disk, lifted to the hemisphere (cosine
+ * distributed) around n (tangents u, v). */
+vec3 sky_cone_dir(int i, int cones, vec3 n, vec3 u, vec3 v)
+{
+  float r = sqrt((float(i) + 0.5) / float(cones));
+  float phi = float(i) * 2.39996323;
+  return normalize(u * (r * cos(phi)) + v * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - r * r)));
+}
+
+vec3 sky_light(vec3 p, vec3 n, int cones, int first, int take)
 {
   vec3 E = sky_irradiance(n);
   if (!any(greaterThan(E, vec3(0.0)))) {
@@ -31,11 +43,16 @@ vec3 sky_light(vec3 p, vec3 n, int cones)
   float voxel;
   int nearest;
   sdf_scene(p, voxel, nearest);
+  /* every cone's radiance (texture reads only), then the visibility of `take` of them from
+   * `first` on, scaled by cones / take: parts over consecutive redraws that cover every cone once
+   * average to the whole (the viewport's progressive direct light, direct_light.py) */
+  int n_take = clamp(take, 1, cones);
   for (int i = 0; i < cones; i++) {
-    /* Fibonacci points on the disk, lifted to the hemisphere: cosine distributed. */
-    float r = sqrt((float(i) + 0.5) / float(cones));
-    float phi = float(i) * 2.39996323;
-    vec3 dir = normalize(u * (r * cos(phi)) + v * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - r * r)));
+    all_ += sky_ray(sky_cone_dir(i, cones, n, u, v)) + 1e-6;
+  }
+  for (int j = 0; j < n_take; j++) {
+    int i = (first + j) % cones;
+    vec3 dir = sky_cone_dir(i, cones, n, u, v);
     vec3 L = sky_ray(dir) + 1e-6;
     /* An open plane must not occlude its own sky: its field along dir is t sin(e) (e the
      * cone's elevation), so with the half-voxel thin-wall rule measured from where that field
@@ -45,9 +62,8 @@ vec3 sky_light(vec3 p, vec3 n, int cones)
     float elev_sin = max(dot(dir, n), 0.05);
     float k = max(2.0, 1.0 / elev_sin);
     seen += L * cone_visibility_shell(p, n, dir, 3.0, k, THIN_VOXELS * voxel / elev_sin);
-    all_ += L;
   }
-  return E * seen / all_;
+  return E * seen * (float(cones) / float(n_take)) / all_;
 }
 
 void main()
@@ -70,12 +86,16 @@ void main()
   if (dot(n, cam_pos - p) < 0.0) {
     n = -n; /* back face: shade the side the camera sees, as Cycles does */
   }
+  int light_samples = sample_plan % 256;
+  int sample_first = (sample_plan / 256) % 256;
+  int sample_take = sample_plan / 65536;
   vec3 E = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
-    E += light_irradiance(i, p, n, light_samples, light_rotation(px));
+    E += light_irradiance_part(i, p, n, light_samples, light_rotation(px), sample_first,
+                               sample_take);
   }
   if (sky_cones > 0) {
-    E += sky_light(p, n, sky_cones);
+    E += sky_light(p, n, sky_cones, sample_first, sample_take);
   }
   vec3 direct = E / PI;
   vec3 albedo = texelFetch(gbuf_albedo, px, 0).rgb;

@@ -110,7 +110,19 @@ vec2 light_rotation(ivec2 px)
  * as its share of the light (k = distance / (radius / sqrt(samples))), and their mean is the
  * soft shadow: a penumbra that grows from the shadow edge both ways, as a path tracer's does,
  * where one cone over the whole light darkens from the edge outwards only. */
+vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int first, int take);
+
 vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
+{
+  return light_irradiance_part(i, p, n, samples, rot, 0, samples);
+}
+
+/* light_irradiance from `take` of the light's `samples` strata, starting at stratum `first`
+ * (wrapping): the viewport spreads a light's samples over redraws (direct_light.py), and the mean
+ * of the parts of consecutive redraws that cover every stratum once is light_irradiance exactly
+ * (each sample keeps the cone width of `samples`). A light with one sample (a sun, a point light
+ * without radius) returns its whole light from every part. */
+vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int first, int take)
 {
   vec4 t0 = light_texel(i, 0);
   vec4 t1 = light_texel(i, 1);
@@ -136,7 +148,9 @@ vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
   vec3 bv = cross(axis, bu);
   float sub = r / sqrt(float(count));            /* radius of each sample's share of the light */
   vec3 sum = vec3(0.0);
-  for (int s = 0; s < count; s++) {
+  int n_take = clamp(take, 1, count);
+  for (int j = 0; j < n_take; j++) {
+    int s = (first + j) % count;
     vec2 u = fract(vec2((float(s) + 0.5) / float(count), float(s) * 0.618033988749895) + rot);
     float rr = count > 1 ? r * sqrt(u.x) : 0.0;
     float phi = 6.28318530717958648 * u.y;
@@ -169,5 +183,5 @@ vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
     float k = clamp(dist / max(sub, 1e-3), 2.0, 256.0);
     sum += E * cos_s * cone_visibility(p, n, L, reach, k);
   }
-  return sum / float(count);
+  return sum / float(n_take);
 }

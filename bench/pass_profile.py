@@ -1,0 +1,131 @@
+"""Benchmark: where a viewport frame's time goes, pass by pass, against EEVEE's one-sample frame.
+
+bench/frame_time.py's scene (optionally with --extra-objects), the engine's own view_draw at W x H
+(tools/viewport_harness.py: offscreen, duck-typed context, one GI iteration per redraw), and every
+compute dispatch timed by shader. Why this works: Mesa llvmpipe runs a compute dispatch on the CPU
+before `gpu.compute.dispatch` returns (checked below: the dispatch's time grows with its size),
+so the wall time around it is the pass's time; on a real GPU it would only be the submission.
+EEVEE renders the same camera at W x H with 1 render sample in the same process.
+
+    .venv/bin/python bench/pass_profile.py [--viewport 640 360] [--redraws 4] [--pixel-size 1]
+                                           [--quality MEDIUM] [--extra-objects N]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
+
+
+def shader_names() -> dict:
+    """{id(shader): name} over every module's shader cache (compute passes cache by name)."""
+    import importlib
+
+    base = "lumen_gi.gpu_shaders"          # tools/demo.load_addon's package name
+    names = {}
+    for mod_name in ("compute", "direct_light", "global_sdf", "resources", "sdf_trace",
+                     "voxel_lighting", "gbuffer"):
+        mod = importlib.import_module(f"{base}.{mod_name}")
+        for cache in (getattr(mod, "_SHADERS", None), getattr(mod, "_SHADER", None)):
+            for key, sh in (cache or {}).items():
+                names[id(sh)] = f"{mod_name}:{key}" if mod_name != "compute" else str(key)
+    return names
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--viewport", type=int, nargs=2, default=(640, 360), metavar=("W", "H"))
+    ap.add_argument("--redraws", type=int, default=4)
+    ap.add_argument("--pixel-size", default="1", choices=("1", "2", "4", "8"))
+    ap.add_argument("--quality", default="MEDIUM", choices=("LOW", "MEDIUM", "HIGH"))
+    ap.add_argument("--extra-objects", type=int, default=0)
+    args = ap.parse_args()
+
+    import bpy
+    import gpu
+    import demo
+    import frame_time
+    import viewport_harness
+
+    addon = demo.load_addon()
+    engine = addon.gpu_shaders.engine
+    width, height = args.viewport
+    with tempfile.TemporaryDirectory() as tmp:
+        scene = frame_time.build_scene(Path(tmp), width, args.extra_objects)
+        scene.render.resolution_x, scene.render.resolution_y = width, height
+        scene.render.engine = "LUMEN_GI"
+        if bpy.ops.lumen.bake() != {'FINISHED'}:
+            raise SystemExit("bake failed")
+        settings = getattr(scene.lumen, "engine", scene.lumen)   # the settings' group, if split
+        for name in ("viewport_gi_quality", "viewport_quality"):
+            if hasattr(settings, name):
+                setattr(settings, name, args.quality)
+        scene.render.preview_pixel_size = args.pixel_size
+
+        per_draw = []          # [{pass: seconds}] per redraw
+        timings = defaultdict(float)
+        real_dispatch = gpu.compute.dispatch
+        names = {}
+
+        def timed_dispatch(sh, *groups):
+            t = time.perf_counter()
+            real_dispatch(sh, *groups)
+            key = names.get(id(sh))
+            if key is None:
+                names.update(shader_names())
+                key = names.get(id(sh), "?")
+            timings[key] += time.perf_counter() - t
+
+        def on_redraw(i):
+            R = engine.LAST_RENDER
+            row = dict(timings)
+            row["(gbuffer draw)"] = R.get("gbuffer_seconds", 0.0)
+            row["(extract + sync)"] = R.get("extract_seconds", 0.0) + R.get("sync_seconds", 0.0)
+            row["(frame total)"] = R.get("frame_seconds", 0.0)
+            per_draw.append(row)
+            timings.clear()
+
+        gpu.compute.dispatch = timed_dispatch
+        try:
+            out = viewport_harness.run(scene, engine.LumenGIRenderEngine, width, height,
+                                       redraws=args.redraws + 1, on_redraw=on_redraw)
+        finally:
+            gpu.compute.dispatch = real_dispatch
+        draw_seconds = out["seconds"]
+        steady = per_draw[1:] or per_draw
+        keys = sorted({k for row in steady for k in row},
+                      key=lambda k: -statistics.median(r.get(k, 0.0) for r in steady))
+        eevee_id = [i.identifier for i in
+                    bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
+                    if i.identifier.startswith("BLENDER_EEVEE")][0]
+        scene.render.engine = eevee_id
+        scene.eevee.taa_render_samples = 1
+        eevee = []
+        for _ in range(args.redraws + 1):
+            t = time.perf_counter()
+            bpy.ops.render.render()
+            eevee.append(time.perf_counter() - t)
+
+    ours = statistics.median(draw_seconds[1:])
+    ev = statistics.median(eevee[1:])
+    print(f"viewport {width}x{height}, Pixel Size {args.pixel_size}, {args.quality}, "
+          f"{len(scene.objects)} objects; medians of {len(steady)} redraws after the first")
+    print(f"{'pass':40s} {'ms':>9s} {'share':>7s}")
+    total = statistics.median(r.get("(frame total)", 0.0) for r in steady)
+    for k in keys:
+        ms = statistics.median(r.get(k, 0.0) for r in steady) * 1000
+        if ms >= 0.05:
+            print(f"{k:40s} {ms:9.1f} {ms / max(total * 1000, 1e-9):7.1%}")
+    print(f"view_draw (median) {ours * 1000:.1f} ms; EEVEE 1 sample at {width}x{height} "
+          f"{ev * 1000:.1f} ms; ratio {ours / ev:.2f} (target: 0.5)")
+
+
+if __name__ == "__main__":
+    main()
