@@ -63,10 +63,7 @@ def main():
         scene.render.engine = "LUMEN_GI"
         if bpy.ops.lumen.bake() != {'FINISHED'}:
             raise SystemExit("bake failed")
-        settings = getattr(scene.lumen, "engine", scene.lumen)   # the settings' group, if split
-        for name in ("viewport_gi_quality", "viewport_quality"):
-            if hasattr(settings, name):
-                setattr(settings, name, args.quality)
+        scene.lumen.engine.viewport_quality = args.quality
         scene.render.preview_pixel_size = args.pixel_size
 
         per_draw = []          # [{pass: seconds}] per redraw

@@ -37,8 +37,8 @@ if bg is not None:
     bg.inputs["Color"].default_value = (0.3, 0.4, 0.6, 1.0)
 cam = aimed_camera((0.0, -4.5, 3.5), (0.0, 0.0, 0.3))
 scene.render.engine = "LUMEN_GI"
-scene.lumen.gi_quality = "OFF"
-scene.lumen.viewport_gi_quality = "OFF"
+scene.lumen.engine.render_quality = "OFF"
+scene.lumen.engine.viewport_quality = "OFF"
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 res, err = bake()
