@@ -28,7 +28,9 @@ GI_METHOD_ITEMS = (
      "image: fast and detailed, but blind to anything the screen does not show"),
     ('RSM', "Reflective Shadow Maps", "One bounce of the lamps' light from what each lamp "
      "sees, ignoring what stands in the bounced light's way (emission does not bounce)"),
-    ('LPV', "Light Propagation Volumes", "Not built yet: renders with Lumen"),
+    ('LPV', "Light Propagation Volumes", "One bounce of the lamps' light spread through a coarse "
+     "grid around the scene: smooth and cheap, but blurred, and it leaks through thin walls "
+     "(emission does not bounce)"),
     ('VXGI', "Voxel Cone Tracing (VXGI)", "Not built yet: renders with Lumen"))
 
 
@@ -85,6 +87,8 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                 "(red)"),
                ('RSM_FLUX', "RSM Flux", "GI Method RSM: the lights' reflective shadow maps "
                 "side by side, as the light their texels reflect"),
+               ('LPV_GRID', "LPV Grid", "GI Method LPV: the light propagation volume's "
+                "horizontal slices side by side, bottom slice first, as each cell's mean light"),
                ('HYBRID', "Mesh vs Global SDF", "SDF trace only: green = hit in the mesh SDFs "
                 "(first 1.8 m), blue = hit in the global SDF clipmaps, black = miss"),
                ('SC_FINAL', "Surface Cache", "The cards' final lighting, seen through the cards "
