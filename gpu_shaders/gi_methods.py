@@ -36,8 +36,8 @@ class MethodSettings:
     ssgi_reuse: int = 1            # neighbours' rays reused: (2 r + 1)^2 pixels
     rsm_resolution: int = 256      # texels per side of each light's map
     rsm_samples: int = 64          # RSM texels gathered per pixel per frame
-    lpv_cells: int = 32            # LPV cells along the scene's longest side (RSMs: rsm_resolution)
-    lpv_iterations: int = 16       # propagation steps: light reaches this many cells
+    lpv_cells: int = 24            # LPV cells along the scene's longest side (RSMs: rsm_resolution)
+    lpv_iterations: int = 48       # propagation steps: light travels at most this many cells
     lpv_occlusion: bool = True     # the mesh SDFs block the propagation
 
 

@@ -9,21 +9,11 @@
  * gbuf_normal, acc_r, acc_g, acc_b; push grid_origin, grid_dims, cam_pos. Output out_image: E rgb,
  * w = 1 on surfaces.
  */
-void main()
+vec3 lpv_irradiance(vec3 q, vec3 n)
 {
-  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-  ivec2 size = imageSize(out_image);
-  if (px.x >= size.x || px.y >= size.y) {
-    return;
-  }
-  vec3 x, n;
-  if (!gbuf_surface(px, cam_pos, x, n)) {
-    imageStore(out_image, px, vec4(0.0));
-    return;
-  }
   float h = grid_origin.w;
   ivec3 dims = grid_dims.xyz;
-  vec3 g = clamp((x + 0.5 * h * n - grid_origin.xyz) / h - 0.5, vec3(0.0), vec3(dims - 1));
+  vec3 g = clamp((q - grid_origin.xyz) / h - 0.5, vec3(0.0), vec3(dims - 1));
   ivec3 i0 = clamp(ivec3(floor(g)), ivec3(0), max(dims - 2, ivec3(0)));
   vec3 f = clamp(g - vec3(i0), 0.0, 1.0);
   vec4 r = vec4(0.0), gg = vec4(0.0), b = vec4(0.0);
@@ -38,6 +28,22 @@ void main()
     b += w * texelFetch(acc_b, t, 0);
   }
   vec4 lobe = lpv_lobe(-n);
-  vec3 E = max(vec3(dot(r, lobe), dot(gg, lobe), dot(b, lobe)), vec3(0.0)) / (h * h);
+  return max(vec3(dot(r, lobe), dot(gg, lobe), dot(b, lobe)), vec3(0.0)) / (h * h);
+}
+
+void main()
+{
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 size = imageSize(out_image);
+  if (px.x >= size.x || px.y >= size.y) {
+    return;
+  }
+  vec3 x, n;
+  if (!gbuf_surface(px, cam_pos, x, n)) {
+    imageStore(out_image, px, vec4(0.0));
+    return;
+  }
+  float h = grid_origin.w;
+  vec3 E = min(lpv_irradiance(x + 0.5 * h * n, n), lpv_irradiance(x + 1.5 * h * n, n));
   imageStore(out_image, px, vec4(E, 1.0));
 }

@@ -49,7 +49,7 @@ void main()
         omega = 0.42343326745934884;
       }
       vec4 y = lpv_basis(w);
-      vec4 lobe = lpv_lobe(nf) * (T * omega / LPV_PI);
+      vec4 lobe = lpv_lobe(w) * (T * omega / LPV_PI);
       r += dot(cr, y) * lobe;
       g += dot(cg, y) * lobe;
       b += dot(cb, y) * lobe;
