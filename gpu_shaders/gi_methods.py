@@ -9,10 +9,10 @@ the indirect light, on the same G-buffer, direct light and composite.
     VXGI   voxel cone tracing: not built yet, renders with LUMEN and says so
 
 SSGI, RSM and LPV bring the bounced light of what they see; the sky's light then comes from the
-direct pass (its SDF-occluded sky light, as with GI Off), so their misses bring nothing and the sky is
-counted once. `indirect_light` returns what gi.indirect_light does (the E_indirect texture and the
-numbers frame() records), so composite.composite works unchanged. Each method keeps its textures
-and history on the engine's SceneState (`state.gi_methods`), freed with it.
+direct pass (its SDF-occluded sky light, as with GI Off), so their misses bring nothing and the
+sky is counted once. `indirect_light` returns what gi.indirect_light does (the E_indirect texture
+and the numbers frame() records), so composite.composite works unchanged. Each method keeps its
+textures and history on the engine's SceneState (`state.gi_methods`), freed with it.
 bpy-free: `from_scene` reads plain attributes.
 """
 from __future__ import annotations
@@ -170,7 +170,8 @@ def notes(settings: MethodSettings, state) -> list:
 
 
 def stats(state) -> dict:
-    """GPU bytes of the methods' textures (ssgi_*, rsm_*, lpv_*) for MEMORY / LAST_RENDER['gpu_bytes']."""
+    """GPU bytes of the methods' textures (ssgi_*, rsm_*, lpv_*) for MEMORY and
+    LAST_RENDER['gpu_bytes']."""
     out = {}
     for m in (getattr(state, "gi_methods", None) or {}).values():
         out.update(m.stats())
@@ -178,8 +179,8 @@ def stats(state) -> dict:
 
 
 def debug_image(view: str, state, width: int, height: int):
-    """The image of a GI method's debug view (SSGI_HITS, RSM_FLUX, LPV_GRID), float32 [h, w, 4]; black
-    when that method is not the one rendering."""
+    """The image of a GI method's debug view (SSGI_HITS, RSM_FLUX, LPV_GRID), float32
+    [h, w, 4]; black when that method is not the one rendering."""
     methods = getattr(state, "gi_methods", None) or {}
     if view == "SSGI_HITS" and "SSGI" in methods:
         img = methods["SSGI"].hit_image()

@@ -6,19 +6,24 @@ Per frame:
                       texel), the virtual point lights
     lpv_inject        one point per RSM texel drawn with additive blending into the grid: 2-band
                       SH (4 coefficients per colour channel) of each cell's summed intensity
-    lpv_geometry      per cell face, the fraction of light that crosses it, from the mesh SDFs
+    lpv_geometry      per cell, the transmittance of its +x, +y, +z crossings from the mesh SDFs
                       (re-made only when the grid or the objects change)
     lpv_propagate     `iterations` times: each cell gathers from its six neighbours through the
-                      faces of its own cell (the classic face-based scheme), and the iterations
-                      are summed (the accumulated volume)
-    lpv_gather        per pixel, the accumulated SH trilinearly at the surface, convolved with the
-                      cosine lobe of its normal: E_indirect
+                      faces of its own cell (the face-based scheme), summed into the accumulated
+                      volume
+    lpv_gather        per pixel, the accumulated SH trilinearly half a cell in front of the
+                      surface, convolved with the cosine lobe of its normal: E_indirect
 Why one grid fitted to the scene's bounds (cubic cells, `cells` along the longest side, fewer
 along the others) rather than 32^3 around the camera: the RSMs are fitted to the same bounds, so
-every virtual light lands in a cell and none of the lights' bounce is lost, and the light of what
-is behind the camera still propagates into view; the price is coarser cells in large scenes (one
-grid, no cascades). The accumulated volume, not a converged one: light travels one cell per
-iteration, so `iterations` bounds how far a bounce reaches (iterations x the cell side).
+every virtual light lands in a cell and none of the bounce is lost, and light from behind the
+camera still propagates into view; the price is coarser cells in large scenes (no cascades).
+Light moves one cell per iteration, so `iterations` should be about twice `cells` for it to cross
+the grid (the defaults, 24 and 48, were the best of 16..32 cells on bench/quality.py's Cornell
+box and sunlit room). The propagation is linear (the accumulated volume holds exactly
+(iterations + 1) x the injected flux when nothing leaves the grid: tests/gpu/test_lpv.py), so
+nothing is clamped before the per-pixel lookup; 2-band SH cannot hold the zero of a cosine lobe
+at grazing angles, so a lit floor's light spreads along it and is read back by it
+(self-illumination: 0.6 of its exitance in the test) and light wraps around thin walls' edges.
 Emission does not inject (an emissive surface is no light of the RSMs, as with GI Method RSM), and
 the light bounces once (the propagated light does not re-inject). Needs a GPU context.
 """

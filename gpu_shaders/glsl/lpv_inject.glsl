@@ -7,7 +7,8 @@
  * half a cell along the normal, so a surface does not light or shadow its own cell). Texels where
  * the map shows nothing are sent outside the clip volume. Vertex input idx (the texel's index,
  * row-major); push grid_origin, grid_dims, rsm_res.
- * The vertex and fragment stages are separated by the marker line "// FRAGMENT" (without the space).
+ * The vertex and fragment stages are separated by the marker line "// FRAGMENT" (without the
+ * space).
  */
 void main()
 {
