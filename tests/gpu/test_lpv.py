@@ -269,6 +269,16 @@ for name, method, quality, view, grey in (("black", "LPV", "LOW", "COMBINED", 0.
     out[name] = dict(method=R.get("gi_method"), notes=R["notes"], memory=R["gpu_bytes"],
                      gi=R.get("gi_timings"), frame=R["frame_seconds"])
 
+# the viewport (view_draw): LPV is deterministic, so every redraw is the whole answer
+import viewport_harness
+scene.lumen.debug_view = "COMBINED"
+scene.lumen.viewport_gi_quality = "LOW"
+vp = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 3,
+                          lambda i: [list(engine.LAST_RENDER["gi_progress"]),
+                                     engine.LAST_RENDER["gi_converged"]])
+out["viewport"] = vp["after"]
+np.save("viewport_indirect.npy", engine.LAST_RENDER["indirect"])
+
 # the black floor again without occlusion: lpv_occlusion through gi_methods' MethodSettings (no
 # property yet: operators/properties.py does not have the LPV settings)
 import dataclasses
@@ -297,7 +307,8 @@ def test_lpv_sun_on_a_wall_lights_the_floor(tmp_path):
     on a grey floor, what LPV adds beyond it: the floor's own light read back (self-illumination,
     2-band SH cannot hold the zero of a cosine lobe at grazing angles, so light spreads along the
     floor); behind the wall, with and without occlusion (what gets there wraps around the
-    wall's edges: blur); the debug view and memory per stage."""
+    wall's edges: blur); the viewport equals F12 from its first redraw; the debug view and
+    memory per stage."""
     run = run_python(SCENE, tmp_path, timeout=600)
     assert run.returncode == 0, run.explain()
     r = run.result
@@ -328,6 +339,12 @@ def test_lpv_sun_on_a_wall_lights_the_floor(tmp_path):
     # the wall's one bounce arrives, of the right amount and the wall's colour
     assert np.all(np.abs(mean - 1.0) < 0.35)
     np.testing.assert_allclose(mean / mean[0], 1.0, atol=0.01)
+
+    # the viewport's redraws: the F12 image at once (no history to converge)
+    vp = np.load(t / "viewport_indirect.npy")[..., :3] * np.pi
+    print(f"viewport: {r['viewport']}, max |E - F12| {np.abs(vp - grey).max():.2e}")
+    assert r["viewport"] == [[[1, 1], True]] * 3
+    np.testing.assert_allclose(vp, grey, atol=1e-5 * grey.max())
 
     # grey floor: its own light read back; the sun's exitance of the floor M = rho E cos
     m_floor = 0.5 * SUN["strength"] * -d[2]
