@@ -4,14 +4,15 @@ brings the indirect light, on the same G-buffer, direct light and composite.
     LUMEN  gi.py: surface cache, global SDF, screen probes (the default)
     SSGI   ssgi.py: HZB screen rays reading last frame's lit image; what the screen shows only
     RSM    rsm.py: one bounce of the lights from reflective shadow maps, no occlusion
-    LPV    light propagation volumes: not built yet, renders with LUMEN and says so
+    LPV    lpv.py: the RSMs' texels injected into a grid of 2-band SH, propagated to the six
+           neighbours (SDF occlusion), read per pixel; one bounce, no emission
     VXGI   voxel cone tracing: not built yet, renders with LUMEN and says so
 
-SSGI and RSM bring the bounced light of what they see; the sky's light then comes from the direct
-pass (its SDF-occluded sky light, as with GI Off), so their misses bring nothing and the sky is
-counted once. `indirect_light` returns what gi.indirect_light does (the E_indirect texture and the
-numbers frame() records), so composite.composite works unchanged. Each method keeps its textures
-and history on the engine's SceneState (`state.gi_methods`), freed with it.
+SSGI, RSM and LPV bring the bounced light of what they see; the sky's light then comes from the
+direct pass (its SDF-occluded sky light, as with GI Off), so their misses bring nothing and the
+sky is counted once. `indirect_light` returns what gi.indirect_light does (the E_indirect texture
+and the numbers frame() records), so composite.composite works unchanged. Each method keeps its
+textures and history on the engine's SceneState (`state.gi_methods`), freed with it.
 bpy-free: `from_scene` reads plain attributes; MethodSettings' defaults are the properties' defaults
 (operators/properties.py reads them from here).
 """
@@ -23,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 METHODS = ("LUMEN", "SSGI", "RSM", "LPV", "VXGI")
-BUILT = ("LUMEN", "SSGI", "RSM")
-DEBUG_VIEWS = ("SSGI_HITS", "RSM_FLUX")
+BUILT = ("LUMEN", "SSGI", "RSM", "LPV")
+DEBUG_VIEWS = ("SSGI_HITS", "RSM_FLUX", "LPV_GRID")
 
 
 @dataclass(frozen=True)
@@ -36,6 +37,9 @@ class MethodSettings:
     ssgi_reuse: int = 1            # neighbours' rays reused: (2 r + 1)^2 pixels
     rsm_resolution: int = 256      # texels per side of each light's map
     rsm_samples: int = 64          # RSM texels gathered per pixel per frame
+    lpv_cells: int = 24            # LPV cells along the scene's longest side (RSMs: rsm_resolution)
+    lpv_iterations: int = 48       # propagation steps: light travels at most this many cells
+    lpv_occlusion: bool = True     # the mesh SDFs block the propagation
 
 
 def from_scene(engine_settings) -> tuple:
@@ -54,12 +58,15 @@ def from_scene(engine_settings) -> tuple:
         ssgi_thickness=float(getattr(s, "ssgi_thickness", d.ssgi_thickness)),
         ssgi_reuse=int(getattr(s, "ssgi_reuse", d.ssgi_reuse)),
         rsm_resolution=int(getattr(s, "rsm_resolution", d.rsm_resolution)),
-        rsm_samples=int(getattr(s, "rsm_samples", d.rsm_samples))), notes
+        rsm_samples=int(getattr(s, "rsm_samples", d.rsm_samples)),
+        lpv_cells=min(max(int(getattr(s, "lpv_cells", d.lpv_cells)), 4), 128),
+        lpv_iterations=max(int(getattr(s, "lpv_iterations", d.lpv_iterations)), 0),
+        lpv_occlusion=bool(getattr(s, "lpv_occlusion", d.lpv_occlusion))), notes
 
 
 def direct_has_sky(settings: MethodSettings, gi_enabled: bool) -> bool:
     """Whether the direct pass carries the sky light: with GI off, and with the methods whose
-    rays do not read the sky (SSGI, RSM)."""
+    rays do not read the sky (SSGI, RSM, LPV)."""
     return not gi_enabled or settings.method != "LUMEN"
 
 
@@ -78,7 +85,8 @@ SCENE_CHANGES = {"atlas", "objects", "cards", "lights"}   # SceneState.sync chan
 
 
 def _holder(state, name: str, width: int, height: int):
-    """The method's object on the state (SSGI or RSM, for this image size)."""
+    """The method's object on the state (SSGI, RSM or LPV, for this image size)."""
+    from .lpv import LPV
     from .rsm import RSM
     from .ssgi import SSGI
 
@@ -87,14 +95,14 @@ def _holder(state, name: str, width: int, height: int):
         methods = state.gi_methods = {}
     obj = methods.get(name)
     if obj is None or (obj.width, obj.height) != (width, height):
-        obj = methods[name] = {"SSGI": SSGI, "RSM": RSM}[name](width, height)
+        obj = methods[name] = {"SSGI": SSGI, "RSM": RSM, "LPV": LPV}[name](width, height)
     return obj
 
 
 def indirect_light(settings: MethodSettings, state, gbuf: dict, objects, direct_textures: dict,
                    gi_cfg, view_key, view_proj, inv_view_proj, cam_pos, sky, t_max: float,
                    width: int, height: int, changes: set, final: bool) -> dict:
-    """Run SSGI or RSM for one frame; returns {'texture': E_indirect, 'timings', 'iterations',
+    """Run SSGI, RSM or LPV for one frame; returns {'texture': E_indirect, 'timings', 'iterations',
     'progress', 'converged', 'sc_tiles', 'sc_tiles_total'} like gi.indirect_light. The history
     starts again for F12 and whenever the view, the settings, the sky or the scene changed."""
     t0 = time.perf_counter()
@@ -104,6 +112,8 @@ def indirect_light(settings: MethodSettings, state, gbuf: dict, objects, direct_
     if final or key != m.key or changes & SCENE_CHANGES:
         m.reset()
     m.key = key
+    if settings.method == "LPV":
+        return _lpv_frame(settings, state, m, gbuf, objects, cam_pos, changes, t0)
     if settings.method == "SSGI":
         m.prepare(gbuf, view_proj)
     else:
@@ -128,6 +138,20 @@ def indirect_light(settings: MethodSettings, state, gbuf: dict, objects, direct_
             "sc_tiles": 0, "sc_tiles_total": 0}
 
 
+def _lpv_frame(settings, state, m, gbuf, objects, cam_pos, changes, t0) -> dict:
+    """LPV is deterministic: one update and one gather per frame (F12 and viewport alike), no
+    history to blend."""
+    m.update(objects, state, settings.lpv_cells, settings.lpv_iterations, settings.lpv_occlusion,
+             settings.rsm_resolution, bool(changes & {"objects", "atlas"}))
+    t1 = time.perf_counter()
+    m.iterate(gbuf, cam_pos)
+    t2 = time.perf_counter()
+    return {"texture": m.history, "timings": {"rsm_maps_lpv": t1 - t0, "lpv": t2 - t1,
+                                              "total": t2 - t0},
+            "iterations": 1, "progress": (1, 1), "converged": True,
+            "sc_tiles": 0, "sc_tiles_total": 0}
+
+
 def release(state, keep: str = ""):
     """Free the other methods' textures and histories (a method switch in the viewport)."""
     methods = getattr(state, "gi_methods", None) or {}
@@ -138,16 +162,18 @@ def release(state, keep: str = ""):
 def notes(settings: MethodSettings, state) -> list:
     """What the frame's method leaves out, for frame()'s notes (F12 reports them)."""
     out = []
-    if settings.method == "RSM":
-        m = (getattr(state, "gi_methods", None) or {}).get("RSM")
-        if m is not None and not m.maps:
-            out.append("GI Method RSM: no light, so no indirect light (emission does not "
-                       "bounce through reflective shadow maps)")
+    if settings.method in ("RSM", "LPV"):
+        m = (getattr(state, "gi_methods", None) or {}).get(settings.method)
+        maps = m.maps if settings.method == "RSM" else (m.rsm.maps if m is not None else None)
+        if m is not None and not maps:
+            out.append(f"GI Method {settings.method}: no light, so no indirect light (emission "
+                       "does not bounce through reflective shadow maps)")
     return out
 
 
 def stats(state) -> dict:
-    """GPU bytes of the methods' textures (ssgi_*, rsm_*) for MEMORY / LAST_RENDER['gpu_bytes']."""
+    """GPU bytes of the methods' textures (ssgi_*, rsm_*, lpv_*) for MEMORY and
+    LAST_RENDER['gpu_bytes']."""
     out = {}
     for m in (getattr(state, "gi_methods", None) or {}).values():
         out.update(m.stats())
@@ -155,8 +181,8 @@ def stats(state) -> dict:
 
 
 def debug_image(view: str, state, width: int, height: int):
-    """The image of a GI method's debug view (SSGI_HITS, RSM_FLUX), float32 [h, w, 4]; black
-    when that method is not the one rendering."""
+    """The image of a GI method's debug view (SSGI_HITS, RSM_FLUX, LPV_GRID), float32
+    [h, w, 4]; black when that method is not the one rendering."""
     methods = getattr(state, "gi_methods", None) or {}
     if view == "SSGI_HITS" and "SSGI" in methods:
         img = methods["SSGI"].hit_image()
@@ -164,6 +190,8 @@ def debug_image(view: str, state, width: int, height: int):
             return img
     if view == "RSM_FLUX" and "RSM" in methods:
         return methods["RSM"].flux_image(width, height)
+    if view == "LPV_GRID" and "LPV" in methods:
+        return methods["LPV"].grid_image(width, height)
     img = np.zeros((height, width, 4), np.float32)
     img[..., 3] = 1.0
     return img

@@ -220,7 +220,7 @@ class RENDER_PT_lumen_gi_method(_RenderPanel, bpy.types.Panel):
         layout, s = self.begin(context)
         layout.active = gi_on(s)
         layout.prop(s, "gi_method", text="Method")
-        if s.gi_method in ('LPV', 'VXGI'):
+        if s.gi_method in ('VXGI',):
             layout.label(text="Not built yet: renders with Lumen", icon='INFO')
 
 
@@ -279,6 +279,19 @@ class RENDER_PT_lumen_gi_rsm(MethodPanel, bpy.types.Panel):
         col.prop(s, "rsm_samples", text="Samples")
 
 
+class RENDER_PT_lumen_gi_lpv(MethodPanel, bpy.types.Panel):
+    bl_label = "Light Propagation Volumes"
+    METHOD = 'LPV'
+
+    def draw(self, context):
+        layout, s = self.begin(context)
+        col = layout.column()
+        col.prop(s, "lpv_cells", text="Cells")
+        col.prop(s, "lpv_iterations", text="Iterations")
+        col.prop(s, "lpv_occlusion", text="Occlusion")
+        col.prop(s, "rsm_resolution", text="Light Map Resolution")
+
+
 class RENDER_PT_lumen_gi_debug(_RenderPanel, bpy.types.Panel):
     bl_label = "Debug"
     bl_parent_id = "RENDER_PT_lumen_gi"
@@ -295,7 +308,7 @@ SIDEBAR_PANELS = (VIEW3D_PT_lumen, VIEW3D_PT_lumen_bake, VIEW3D_PT_lumen_object,
                   VIEW3D_PT_lumen_last_bake)
 RENDER_PANELS = (RENDER_PT_lumen_gi, RENDER_PT_lumen_gi_viewport, RENDER_PT_lumen_gi_render,
                  RENDER_PT_lumen_gi_method, RENDER_PT_lumen_gi_lumen, RENDER_PT_lumen_gi_ssgi,
-                 RENDER_PT_lumen_gi_rsm, RENDER_PT_lumen_gi_debug)
+                 RENDER_PT_lumen_gi_rsm, RENDER_PT_lumen_gi_lpv, RENDER_PT_lumen_gi_debug)
 _CLASSES = SIDEBAR_PANELS + RENDER_PANELS
 
 

@@ -49,7 +49,9 @@ GI_METHOD_ITEMS = (
      "detailed, but light from anything off screen or hidden behind objects is missing"),
     ('RSM', "Reflective Shadow Maps", "One bounce of the lamps' light from what each lamp "
      "sees, ignoring what stands in the bounced light's way (emission does not bounce)"),
-    ('LPV', "Light Propagation Volumes", "Not built yet: renders with Lumen"),
+    ('LPV', "Light Propagation Volumes", "One bounce of the lamps' light spread through a coarse "
+     "grid around the scene: smooth and cheap, but blurred, and it leaks through thin walls "
+     "(emission does not bounce)"),
     ('VXGI', "Voxel Cone Tracing (VXGI)", "Not built yet: renders with Lumen"))
 
 
@@ -172,6 +174,21 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
         description="Points of the lights' pictures each pixel collects bounced light from per "
                     "frame. More is smoother and slower (the original method used 400)",
         default=METHOD.rsm_samples, min=1, max=4096)
+    lpv_cells: IntProperty(
+        name="LPV Cells",
+        description="Grid cells along the scene's longest side: more is sharper and leaks less "
+                    "light through walls, but is slower and needs more iterations",
+        default=METHOD.lpv_cells, min=4, max=128, soft_min=8, soft_max=64)
+    lpv_iterations: IntProperty(
+        name="LPV Iterations",
+        description="How many cells the bounced light may travel; about twice LPV Cells lets it "
+                    "cross the whole scene. More is slower",
+        default=METHOD.lpv_iterations, min=0, max=256)
+    lpv_occlusion: BoolProperty(
+        name="LPV Occlusion",
+        description="Let walls and objects block the spreading light; turn it off to see how far "
+                    "the light leaks",
+        default=METHOD.lpv_occlusion)
     debug_view: EnumProperty(
         name="Debug View",
         description="Show one stage of the lighting instead of the finished image, to find out "
@@ -188,6 +205,8 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                 "(red)"),
                ('RSM_FLUX', "RSM Flux", "GI Method RSM: the lights' reflective shadow maps "
                 "side by side, as the light their texels reflect"),
+               ('LPV_GRID', "LPV Grid", "GI Method LPV: the light propagation volume's "
+                "horizontal slices side by side, bottom slice first, as each cell's mean light"),
                ('HYBRID', "Mesh vs Global SDF", "SDF trace only: green = hit in the mesh SDFs "
                 "(first 1.8 m), blue = hit in the global SDF clipmaps, black = miss"),
                ('SC_FINAL', "Surface Cache", "The cards' final lighting, seen through the cards "
