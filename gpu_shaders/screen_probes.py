@@ -5,8 +5,10 @@ Per frame, one GLSL pass each:
     screen_probe_place      one probe per tile x tile pixels on a jittered G-buffer pixel
     screen_probe_trace      res x res octahedral rays per probe (whole sphere, world directions,
                             jittered per frame) through gi_trace_lib: surface cache at hits, sky
+    screen_probe_links      which of its 3x3 neighbours each probe sees (short SDF rays, once
+                            per probe)
     screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
-                            hit-distance clamp
+                            hit-distance clamp, the links
     screen_probe_sh         9 SH coefficients per probe (exact texel solid angles)
     screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, those a wall
                             hides left out, SH irradiance; a pixel that sees none traces 16 rays
@@ -84,12 +86,22 @@ class ScreenProbes:
         sh.image("out_image", tex["radiance"])
         compute.dispatch(sh, gw * r, gh * r)
 
+        tex["links"] = compute.texture((gw, gh), 'R32F')
+        sh = compute.shader("screen_probe_links", samplers=("probe_info", "probe_normal"),
+                            images=(("out_image", 'R32F'),), scene=True)
+        resources.bind(sh)
+        sh.uniform_sampler("probe_info", tex["info"])
+        sh.uniform_sampler("probe_normal", tex["normal"])
+        sh.image("out_image", tex["links"])
+        compute.dispatch(sh, gw, gh)
+
         tex["filtered"] = compute.texture((gw * r, gh * r))
         sh = compute.shader("screen_probe_filter",
-                            samplers=("probe_info", "probe_normal", "probe_radiance"),
+                            samplers=("probe_info", "probe_normal", "probe_radiance",
+                                      "probe_links"),
                             push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')),
-                            libs=("octahedral_lib.glsl",), scene=True)
-        resources.bind(sh)
+                            libs=("octahedral_lib.glsl",))
+        sh.uniform_sampler("probe_links", tex["links"])
         sh.uniform_sampler("probe_info", tex["info"])
         sh.uniform_sampler("probe_normal", tex["normal"])
         sh.uniform_sampler("probe_radiance", tex["radiance"])
@@ -153,8 +165,9 @@ class ScreenProbes:
         return out
 
     def stats(self) -> dict:
-        """GPU bytes of the probe textures (RGBA32F) and the history."""
-        out = {"probes_" + k: t.width * t.height * 16 for k, t in self.textures.items()}
+        """GPU bytes of the probe textures (RGBA32F, the links R32F) and the history."""
+        out = {"probes_" + k: t.width * t.height * (4 if t.format == 'R32F' else 16)
+               for k, t in self.textures.items()}
         if self.history is not None:
             out["probes_history"] = self.width * self.height * 16
         return out

@@ -8,9 +8,10 @@
  *     sees elsewhere: parallax near occluders); sky misses are far and pass;
  *   - hit-distance clamp: a neighbour's hit closer than this probe's own is trusted only up to
  *     the own distance (its occluder might not be in this probe's view);
- *   - visibility: a neighbour that a wall hides from this probe (gi_visible) is left out (an
- *     inside probe next to a thin wall must not average the outside's sky).
- * Inputs: probe_info, probe_normal, probe_radiance, the mesh SDFs; probe_res, ray_jitter.
+ *   - visibility: a neighbour that a wall hides from this probe is left out (an inside probe
+ *     next to a thin wall must not average the outside's sky): probe_links, once per probe.
+ * Inputs: probe_info, probe_normal, probe_radiance, probe_links (screen_probe_links);
+ * probe_res, ray_jitter.
  * Output out_image: filtered radiance rgb, a = own hit distance.
  */
 #define FILTER_SHARPNESS 1000.0
@@ -35,6 +36,7 @@ void main()
   vec3 n = texelFetch(probe_normal, pr, 0).xyz;
   vec4 plane = vec4(n, dot(n, info.xyz));
   vec3 dir = oct_texel_dir(texel, probe_res, ray_jitter);
+  int links = int(texelFetch(probe_links, pr, 0).r + 0.5);
   vec3 sum = own.rgb;
   float wsum = 1.0;
   for (int dy = -1; dy <= 1; dy++) {
@@ -56,11 +58,7 @@ void main()
       if (len > 1e-4 && dot(seen / len, dir) < FILTER_MAX_ANGLE_COS) {
         continue;
       }
-      float hh;
-      int oo;
-      sdf_scene(info.xyz, hh, oo);
-      if (!gi_visible(info.xyz, n, qi.xyz, texelFetch(probe_normal, q, 0).xyz,
-                      gi_object_voxel(max(oo, 0)))) {
+      if ((links & (1 << ((dy + 1) * 3 + (dx + 1)))) == 0) {
         continue;
       }
       sum += w * s.rgb;
