@@ -13,8 +13,8 @@
 
 `indirect_light` returns the per-pixel indirect irradiance texture. For F12 renders
 (`final=True`) everything accumulated is reset first and GISettings.render_schedule() runs:
-bounces - 1 surface-cache iterations, then render_frames iterations of cache + probes averaged,
-so a render is deterministic. In the viewport one iteration runs per redraw, blended into the
+bounces - 1 surface-cache iterations, then render_frames iterations of cache (one more bounce
+each) and probes (averaged), so a render is deterministic. In the viewport one iteration runs per redraw, blended into the
 history (exponential over `history` frames; reset when the camera or the scene changes).
 Needs a GPU context.
 """
