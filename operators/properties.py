@@ -29,7 +29,9 @@ GI_METHOD_ITEMS = (
     ('RSM', "Reflective Shadow Maps", "One bounce of the lamps' light from what each lamp "
      "sees, ignoring what stands in the bounced light's way (emission does not bounce)"),
     ('LPV', "Light Propagation Volumes", "Not built yet: renders with Lumen"),
-    ('VXGI', "Voxel Cone Tracing (VXGI)", "Not built yet: renders with Lumen"))
+    ('VXGI', "Voxel Cone Tracing (VXGI)", "A few wide cones per pixel through the voxel "
+     "lighting clipmaps: smooth and cheap per pixel, but blurry, and walls thinner than the "
+     "cones' sampling leak light"))
 
 
 class LumenSceneSettings(bpy.types.PropertyGroup):
@@ -85,6 +87,8 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                 "(red)"),
                ('RSM_FLUX', "RSM Flux", "GI Method RSM: the lights' reflective shadow maps "
                 "side by side, as the light their texels reflect"),
+               ('VXGI_OCCLUSION', "VXGI Cone Occlusion", "GI Method VXGI: how much of each "
+                "pixel's cones surfaces stopped (white) rather than the sky (black)"),
                ('HYBRID', "Mesh vs Global SDF", "SDF trace only: green = hit in the mesh SDFs "
                 "(first 1.8 m), blue = hit in the global SDF clipmaps, black = miss"),
                ('SC_FINAL', "Surface Cache", "The cards' final lighting, seen through the cards "
