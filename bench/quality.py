@@ -2,7 +2,8 @@
 
     .venv/bin/python bench/quality.py [--size 256] [--scenes cornell,window,thin]
         [--cycles-samples 1024] [--engines cycles_ref,cycles_4spp_oidn,eevee,eevee_rt,
-        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm] [--out out/quality] [--quick] [--verbose]
+        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_vxgi,lumen_off] [--out out/quality]
+        [--quick] [--verbose]
 
 Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornell` (area light
 in a Cornell box), `window` (a closed room lit by a sun through one window), `thin` (a closed
@@ -27,6 +28,9 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
     lumen_high        the same with gi_quality='HIGH', render_frames=16, bounces=3
     lumen_ssgi        GI Method SSGI (screen-space GI on an HZB, lecture 21), Medium, 8 frames
     lumen_rsm         GI Method RSM (reflective shadow maps, one bounce), Medium, 8 frames
+    lumen_vxgi        GI Method VXGI (voxel cone tracing over the voxel lighting), Medium, 8 frames
+    lumen_off         GI Quality Off: direct light and SDF-occluded sky light only (what every
+                      GI method must improve on)
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -66,7 +70,7 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 import quality_scenes  # noqa: E402
 
 ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
-           "lumen_high", "lumen_ssgi", "lumen_rsm")
+           "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_vxgi", "lumen_off")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -81,6 +85,9 @@ LUMEN_SSGI_SETTINGS = (("gi_quality", "MEDIUM"), ("render_frames", 8), ("bounces
                        ("gi_method", "SSGI"))
 LUMEN_RSM_SETTINGS = (("gi_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
                       ("gi_method", "RSM"))
+LUMEN_VXGI_SETTINGS = (("gi_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
+                       ("gi_method", "VXGI"))
+LUMEN_OFF_SETTINGS = (("gi_quality", "OFF"), ("gi_method", "LUMEN"))
 
 
 # Rendering -------------------------------------------------------------------------------------
@@ -527,7 +534,9 @@ RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "e
            "eevee_rt": run_eevee_rt, "eevee_volume": run_eevee_volume, "lumen": run_lumen,
            "lumen_high": run_lumen_high,
            "lumen_ssgi": lambda ctx: run_lumen(ctx, LUMEN_SSGI_SETTINGS),
-           "lumen_rsm": lambda ctx: run_lumen(ctx, LUMEN_RSM_SETTINGS)}
+           "lumen_rsm": lambda ctx: run_lumen(ctx, LUMEN_RSM_SETTINGS),
+           "lumen_vxgi": lambda ctx: run_lumen(ctx, LUMEN_VXGI_SETTINGS),
+           "lumen_off": lambda ctx: run_lumen(ctx, LUMEN_OFF_SETTINGS)}
 
 
 # Metrics and images ----------------------------------------------------------------------------

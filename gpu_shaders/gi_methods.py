@@ -10,8 +10,11 @@ the indirect light, on the same G-buffer, direct light and composite.
 
 SSGI and RSM bring the bounced light of what they see; the sky's light then comes from the direct
 pass (its SDF-occluded sky light, as with GI Off), so their misses bring nothing and the sky is
-counted once. LUMEN's rays and VXGI's cones read the sky where they pass through. `indirect_light` returns what gi.indirect_light does (the E_indirect texture and the
-numbers frame() records), so composite.composite works unchanged. Each method keeps its textures
+counted once. LUMEN's rays and VXGI's cones read the sky where they pass through (SKY_IN_GI).
+`indirect_light` returns what gi.indirect_light does (the E_indirect texture and the numbers
+frame() records), so composite.composite works unchanged. VXGI runs through gi.indirect_light
+itself, its cones in place of the screen probes, so it reuses Lumen's global SDF, surface cache
+and voxel lighting updates (F12 and viewport alike). Each method keeps its textures
 and history on the engine's SceneState (`state.gi_methods`), freed with it.
 bpy-free: `from_scene` reads plain attributes.
 """
@@ -182,7 +185,9 @@ def notes(settings: MethodSettings, state) -> list:
 
 
 def stats(state) -> dict:
-    """GPU bytes of the methods' textures (ssgi_*, rsm_*, vxgi_*) for MEMORY / LAST_RENDER['gpu_bytes']."""
+    """GPU bytes of the methods' textures (ssgi_*, rsm_*, vxgi_*) for MEMORY /
+    LAST_RENDER['gpu_bytes'] (VXGI's global SDF, surface cache and voxel lighting are
+    SceneState's, counted by state.stats())."""
     out = {}
     for m in (getattr(state, "gi_methods", None) or {}).values():
         out.update(m.stats())

@@ -36,18 +36,7 @@ import numpy as np
 
 from . import compute, voxel_lighting
 
-LIBS = (("sampling_lib.glsl", "gbuffer_lib.glsl", voxel_lighting.LAYOUT, "voxel_lighting_lib.glsl"))
-
-
-def cone_weights(cones: int, half_angle_deg: float) -> np.ndarray:
-    """The cones' weights in E (numpy twin of the shader's): the cosine-weighted solid angle of
-    the centre cap (pi sin^2 h) and of the ring shared by cones - 1 cones (pi cos^2 h each
-    share); they sum to pi. One cone: pi."""
-    cones = max(int(cones), 1)
-    if cones == 1:
-        return np.array([math.pi])
-    s = math.sin(math.radians(half_angle_deg))
-    return np.array([math.pi * s * s] + [math.pi * (1.0 - s * s) / (cones - 1)] * (cones - 1))
+LIBS = ("sampling_lib.glsl", "gbuffer_lib.glsl", voxel_lighting.LAYOUT, "voxel_lighting_lib.glsl")
 
 
 class VXGI:

@@ -9,6 +9,7 @@
   cos cos / d^2 over the wall (numpy, here). Per band of distance from the wall, VXGI's mean is
   within 35% of it near the wall and 1.5-4x too high 1.5-2.5 m away (RATIO_BANDS: wide cones
   over-count a wall that only grazes them; the measured failure).
+- The viewport (view_draw, 6 redraws) gets the F12 image's E on that floor within 5%.
 - Cornell box (bench/quality_scenes.py, 64 px) against Cycles: VXGI's relMSE is lower than GI
   Off's (VXGI adds the missing indirect light).
 - Thin walls (bench/quality_scenes.py's `thin`, walls 1.5 cm, under one SDF voxel): the leak
@@ -89,6 +90,14 @@ wall.data.materials.append(principled("Wall", (0.0, 0.0, 0.0), emission=(1.0, 1.
 res, err = bake()
 assert err is None, err
 render("wall")
+# the viewport (view_draw): one VXGI gather per redraw into its history, Lumen's surface cache
+# and voxel lighting updated on its own budget
+import viewport_harness
+scene.lumen.viewport_gi_quality = "LOW"
+vp = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 6,
+                          lambda i: list(engine.LAST_RENDER["gi_progress"]))
+out["viewport"] = dict(progress=vp["after"], method=engine.LAST_RENDER["gi_method"])
+np.save("viewport_indirect.npy", engine.LAST_RENDER["indirect"])
 emit(**out)
 """
 
@@ -146,5 +155,103 @@ def test_vxgi_sky_furnace_and_emitting_wall(tmp_path):
         print(f"wall: floor {lo}-{hi} m from it ({m.sum()} px): E {ind[m].mean():.3f}, "
               f"integral {want.mean():.3f}, ratio {ratios[(lo, hi)]:.3f}")
     print(f"{r['wall']['gi']}, frame {r['wall']['frame']:.2f} s")
+    vp = np.load(tmp_path / "viewport_indirect.npy")[..., 0] * np.pi
+    lit = front & (x > 0.25) & (x < 2.5)
+    print(f"viewport after 6 redraws: E / F12 {vp[lit].mean() / ind[lit].mean():.4f}, "
+          f"{r['viewport']}")
+    assert r["viewport"]["method"] == "VXGI"
+    assert abs(vp[lit].mean() / ind[lit].mean() - 1.0) < 0.05
     for band, (lo, hi) in RATIO_BANDS.items():
         assert lo < ratios[band] < hi, (band, ratios[band])
+
+
+BENCH_SNIPPET = """
+import sys
+from pathlib import Path
+sys.path.insert(0, {bench!r})
+import quality, quality_scenes
+from lumen_gi.gpu_shaders import engine
+
+scene = quality_scenes.build({name!r})
+quality.common_setup(scene, {size})
+if {overhead!r}:               # look straight down into the room (its roof is hidden from it)
+    cam = scene.camera
+    cam.location = {overhead!r}
+    quality_scenes._aim(cam, (0.0, 0.0, 0.0))
+scene.lumen.cache_dir = str(Path("cache").resolve())
+log = quality.Log(Path("blender.log").resolve())
+out = {{}}
+if {cycles}:
+    quality.apply_cycles(scene, quality.cycles_settings({samples}, False))
+    _, passes = quality.render(scene, Path("cycles.exr").resolve(), log)
+    np.save("cycles.npy", passes["Combined"][::-1, :, :3])   # EXR rows top-down, ours bottom-up
+res, err = bake()
+assert err is None, err
+scene.render.engine = "LUMEN_GI"
+for label, quality_, method in {runs!r}:
+    scene.lumen.gi_quality = quality_
+    scene.lumen.gi_method = method
+    scene.lumen.render_frames = {frames}
+    scene.lumen.bounces = {bounces}
+    bpy.ops.render.render()
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    np.save(label + ".npy", R["combined"][..., :3])
+    np.save("position.npy", R["position"])
+    out[label] = dict(method=R.get("gi_method"), frame=R["frame_seconds"],
+                      gi=R.get("gi_timings"))
+emit(**out)
+"""
+BENCH = str(HERE.parents[1] / "bench")
+
+
+def rel_mse(x, ref):
+    return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
+
+
+def test_vxgi_adds_light_in_the_cornell_box(tmp_path):
+    """Against Cycles (64 spp, 64 px): VXGI's relMSE is below GI Off's."""
+    runs = (("off", "OFF", "LUMEN"), ("vxgi", "LOW", "VXGI"))
+    snippet = BENCH_SNIPPET.format(bench=BENCH, name="cornell", size=SIZE, cycles=True,
+                                   samples=64, runs=runs, overhead=None, frames=4, bounces=3)
+    run = run_python(snippet, tmp_path, timeout=600)
+    assert run.returncode == 0, run.explain()
+    r = run.result
+    assert r["vxgi"]["method"] == "VXGI"
+    ref = np.load(tmp_path / "cycles.npy")
+    err = {k: rel_mse(np.load(tmp_path / f"{k}.npy"), ref) for k in ("off", "vxgi")}
+    lum = {k: float(np.load(tmp_path / f"{k}.npy").mean() / ref.mean()) for k in ("off", "vxgi")}
+    print(f"cornell {SIZE} px: relMSE GI off {err['off']:.4f}, VXGI {err['vxgi']:.4f}; mean / "
+          f"Cycles: off {lum['off']:.3f}, VXGI {lum['vxgi']:.3f}; VXGI {r['vxgi']['gi']}")
+    assert err["vxgi"] < err["off"]
+    assert lum["vxgi"] > lum["off"]
+
+
+# the leak into bench/quality_scenes.py's thin room (1.5 cm walls and roof under a sunlit sky):
+# mean luminance on the room's inside / on the lit outside. VXGI, LOW (0.2 m voxels), 64 px,
+# measured 6.3% (Lumen in the same run: 0.01%): the lecture's thin-wall leak, recorded
+LEAK_BAND = (0.03, 0.12)
+
+
+def test_vxgi_thin_wall_leak_is_measured(tmp_path):
+    runs = (("lumen", "LOW", "LUMEN"), ("vxgi", "LOW", "VXGI"))
+    snippet = BENCH_SNIPPET.format(bench=BENCH, name="thin", size=SIZE, cycles=False,
+                                   samples=0, runs=runs, overhead=(0.0, 0.3, 6.0), frames=1,
+                                   bounces=1)
+    run = run_python(snippet, tmp_path, timeout=600)
+    assert run.returncode == 0, run.explain()
+    pos = np.load(tmp_path / "position.npy")
+    ix, iy, iz = 1.5, 1.5, 2.2                 # THIN["inner"] / 2 (x, y), height
+    surface = pos[..., 3] > 0.5
+    inside = surface & (np.abs(pos[..., 0]) < ix - 0.05) & (np.abs(pos[..., 1]) < iy - 0.05) \
+        & (pos[..., 2] < iz - 0.05)
+    outside = surface & ~((np.abs(pos[..., 0]) < ix + 0.05) & (np.abs(pos[..., 1]) < iy + 0.05))
+    assert inside.sum() > 200 and outside.sum() > 200, (inside.sum(), outside.sum())
+    leak = {}
+    for k in ("lumen", "vxgi"):
+        img = np.load(tmp_path / f"{k}.npy") @ np.array([0.2126, 0.7152, 0.0722])
+        leak[k] = float(img[inside].mean() / img[outside].mean())
+    print(f"thin room leak ({inside.sum()} px inside, {outside.sum()} outside): "
+          f"Lumen {leak['lumen']:.2%}, VXGI {leak['vxgi']:.2%}; {run.result['vxgi']}")
+    assert LEAK_BAND[0] <= leak["vxgi"] <= LEAK_BAND[1]
+    assert leak["lumen"] < leak["vxgi"]
