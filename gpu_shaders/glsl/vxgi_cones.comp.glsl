@@ -11,7 +11,11 @@
  *             samples fall near it
  *   radiance  vl_sample of the clipmap level whose voxel is at least r (trilinear over 8 voxels
  *             spans 2 voxels: the cone's diameter), the 3 faces along the cone weighted by dir^2;
- *             where no face serves the sample, the last radiance the cone met
+ *             where no face of that level serves the sample, the finer levels'; where none
+ *             does, the opacity waits for the next served sample's radiance (the surface the
+ *             cone closes in on: a face's short ray reaches 1.5 voxels, a sample with d < r
+ *             can be 2 voxels from the wall; 22-31% of the cones' opacity met no face on
+ *             cornell and window before this), or the last radiance met if none comes
  *   C += (1 - A) a L,  A += (1 - A) a;  step max(step r, d - r) (no surface can come nearer
  *             than r within it); stop at A >= 0.99, t_max or outside the coarsest clipmap
  *   sky       C += (1 - A) sky_ray(axis) for what passes through
@@ -50,7 +54,9 @@ vec3 vx_cone(vec3 o, vec3 dir, float sin_h, float t0, float tmax, float step_sca
              out float alpha)
 {
   vec3 c = vec3(0.0);
+  float pending = 0.0;            /* opacity met where no voxel face served the sample */
   vec3 last = vec3(0.0);
+  bool seen = false;
   float a = 0.0;
   float t = t0;
   for (int i = 0; i < VX_MAX_STEPS && t < tmax && a < 0.99; i++) {
@@ -71,14 +77,25 @@ vec3 vx_cone(vec3 o, vec3 dir, float sin_h, float t0, float tmax, float step_sca
     if (occ > 0.0) {
       occ = 1.0 - pow(1.0 - min(occ, 0.999), dt / r);
       vec3 L;
-      if (vl_sample(level, p, dir, vec3(0.0), L)) {
-        last = L;
+      bool ok = false;
+      for (int k = level; k >= 0 && !ok; k--) {
+        ok = vl_sample(k, p, dir, vec3(0.0), L);
       }
-      c += (1.0 - a) * occ * last;
+      if (ok) {
+        c += pending * L;         /* the surface the cone was closing in on */
+        pending = 0.0;
+        last = L;
+        seen = true;
+        c += (1.0 - a) * occ * L;
+      }
+      else {
+        pending += (1.0 - a) * occ;
+      }
       a += (1.0 - a) * occ;
     }
     t += dt;
   }
+  c += pending * last;            /* nothing served after it: the last light met (0: none) */
   c += (1.0 - a) * sky_ray(dir);
   alpha = a;
   return c;
