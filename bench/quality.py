@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/quality.py [--size 256] [--scenes cornell,window,thin]
         [--cycles-samples 1024] [--engines cycles_ref,cycles_4spp_oidn,eevee,eevee_rt,
-        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_lpv,lumen_off] [--out out/quality]
+        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_lpv,lumen_vxgi,lumen_off] [--out out/quality]
         [--quick] [--verbose]
 
 Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornell` (area light
@@ -30,6 +30,7 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
     lumen_rsm         GI Method RSM (reflective shadow maps, one bounce), Medium, 8 frames
     lumen_lpv         GI Method LPV (light propagation volumes, one bounce), Medium, default
                       cells and iterations (deterministic: one frame)
+    lumen_vxgi        GI Method VXGI (voxel cone tracing over the voxel lighting), Medium, 8 frames
     lumen_off         GI Off (gi_quality='OFF'): direct light and the SDF-occluded sky only, the
                       floor every GI method must beat
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
@@ -71,7 +72,8 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 import quality_scenes  # noqa: E402
 
 ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
-           "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_lpv", "lumen_off")
+           "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_lpv", "lumen_vxgi",
+           "lumen_off")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -88,6 +90,8 @@ LUMEN_SSGI_SETTINGS = (("render_quality", "MEDIUM"), ("render_frames", 8), ("bou
 LUMEN_RSM_SETTINGS = (("render_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
                       ("gi_method", "RSM"))
 LUMEN_LPV_SETTINGS = (("render_quality", "MEDIUM"), ("gi_method", "LPV"))
+LUMEN_VXGI_SETTINGS = (("render_quality", "MEDIUM"), ("render_frames", 8), ("bounces", 3),
+                       ("gi_method", "VXGI"))
 LUMEN_OFF_SETTINGS = (("render_quality", "OFF"), ("gi_method", "LUMEN"))
 
 
@@ -538,6 +542,7 @@ RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "e
            "lumen_ssgi": lambda ctx: run_lumen(ctx, LUMEN_SSGI_SETTINGS),
            "lumen_rsm": lambda ctx: run_lumen(ctx, LUMEN_RSM_SETTINGS),
            "lumen_lpv": lambda ctx: run_lumen(ctx, LUMEN_LPV_SETTINGS),
+           "lumen_vxgi": lambda ctx: run_lumen(ctx, LUMEN_VXGI_SETTINGS),
            "lumen_off": lambda ctx: run_lumen(ctx, LUMEN_OFF_SETTINGS)}
 
 

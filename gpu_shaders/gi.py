@@ -9,7 +9,9 @@
                          last iteration's final light (one more bounce each time), combine;
                          the viewport relights a budget of tiles per frame by priority
                          (surface_cache_pages.py), F12 every tile
-    screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py)
+    screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py);
+                         or another final gather passed as `gather` (GI Method VXGI: vxgi.py's
+                         cones read the same voxel lighting)
 
 `indirect_light` returns the per-pixel indirect irradiance texture. For F12 renders
 (`final=True`) everything accumulated is reset first and GISettings.render_schedule() runs:
@@ -56,15 +58,19 @@ def _probes(state, gi: GISettings, width: int, height: int):
 
 
 def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_max: float,
-                   width: int, height: int, changes: set, final: bool, view_proj=None) -> dict:
+                   width: int, height: int, changes: set, final: bool, view_proj=None,
+                   gather=None) -> dict:
     """Run the GI passes; returns {'texture': per-pixel E_indirect, 'timings': {...},
     'iterations': n, 'sc_tiles': surface-cache tiles relit (all iterations), 'sc_tiles_total',
-    'converged': bool (viewport: probe history full and every tile updated `history` times)}."""
+    'converged': bool (viewport: probe history full and every tile updated `history` times)}.
+    gather: the final gather in place of the screen probes (an object with ScreenProbes'
+    history, frames, gather() and temporal(): vxgi.VXGI), so another method reuses this
+    pipeline's global SDF, surface cache and voxel lighting instead of duplicating it."""
     t0 = time.perf_counter()
     res, cache = state.resources, state.surface_cache
     gsdf = _global_sdf(state, gi)
     voxels = _voxel_lighting(state, gsdf) if gi.voxel_lighting else None
-    probes = _probes(state, gi, width, height)
+    probes = gather if gather is not None else _probes(state, gi, width, height)
     scene_changed = bool(changes & {"atlas", "objects", "cards", "lights"}) \
         or state.gi_sky != sky.key
     if final or scene_changed or view_key != state.gi_view_key:
@@ -118,7 +124,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         objects_changed = False
         c2 = time.perf_counter()
         if px_blend is not None:
-            if gi.gather == "PIXEL":
+            if gi.gather == "PIXEL" and gather is None:
                 from .screen_probes import pixel_gather
                 new = pixel_gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max,
                                    gi.pixel_rays, width, height, voxels)

@@ -220,8 +220,6 @@ class RENDER_PT_lumen_gi_method(_RenderPanel, bpy.types.Panel):
         layout, s = self.begin(context)
         layout.active = gi_on(s)
         layout.prop(s, "gi_method", text="Method")
-        if s.gi_method in ('VXGI',):
-            layout.label(text="Not built yet: renders with Lumen", icon='INFO')
 
 
 def gi_on(s) -> bool:
@@ -292,6 +290,20 @@ class RENDER_PT_lumen_gi_lpv(MethodPanel, bpy.types.Panel):
         col.prop(s, "rsm_resolution", text="Light Map Resolution")
 
 
+class RENDER_PT_lumen_gi_vxgi(MethodPanel, bpy.types.Panel):
+    bl_label = "Voxel Cone Tracing"
+    METHOD = 'VXGI'
+
+    def draw(self, context):
+        layout, s = self.begin(context)
+        col = layout.column()
+        col.prop(s, "vxgi_cones", text="Cones")
+        col.prop(s, "vxgi_cone_angle", text="Cone Angle")
+        col.prop(s, "vxgi_distance", text="Distance")
+        col.prop(s, "vxgi_step", text="Step")
+        col.prop(s, "vxgi_offset", text="Offset")
+
+
 class RENDER_PT_lumen_gi_debug(_RenderPanel, bpy.types.Panel):
     bl_label = "Debug"
     bl_parent_id = "RENDER_PT_lumen_gi"
@@ -308,7 +320,8 @@ SIDEBAR_PANELS = (VIEW3D_PT_lumen, VIEW3D_PT_lumen_bake, VIEW3D_PT_lumen_object,
                   VIEW3D_PT_lumen_last_bake)
 RENDER_PANELS = (RENDER_PT_lumen_gi, RENDER_PT_lumen_gi_viewport, RENDER_PT_lumen_gi_render,
                  RENDER_PT_lumen_gi_method, RENDER_PT_lumen_gi_lumen, RENDER_PT_lumen_gi_ssgi,
-                 RENDER_PT_lumen_gi_rsm, RENDER_PT_lumen_gi_lpv, RENDER_PT_lumen_gi_debug)
+                 RENDER_PT_lumen_gi_rsm, RENDER_PT_lumen_gi_lpv,
+                 RENDER_PT_lumen_gi_vxgi, RENDER_PT_lumen_gi_debug)
 _CLASSES = SIDEBAR_PANELS + RENDER_PANELS
 
 

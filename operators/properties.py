@@ -52,7 +52,9 @@ GI_METHOD_ITEMS = (
     ('LPV', "Light Propagation Volumes", "One bounce of the lamps' light spread through a coarse "
      "grid around the scene: smooth and cheap, but blurred, and it leaks through thin walls "
      "(emission does not bounce)"),
-    ('VXGI', "Voxel Cone Tracing (VXGI)", "Not built yet: renders with Lumen"))
+    ('VXGI', "Voxel Cone Tracing (VXGI)", "A few wide cones per pixel through the voxel "
+     "lighting clipmaps: smooth and cheap per pixel, but blurry, and walls thinner than the "
+     "cones' sampling leak light"))
 
 
 class LumenBakeSettings(bpy.types.PropertyGroup):
@@ -189,6 +191,29 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
         description="Let walls and objects block the spreading light; turn it off to see how far "
                     "the light leaks",
         default=METHOD.lpv_occlusion)
+    vxgi_cones: IntProperty(
+        name="VXGI Cones",
+        description="Cones per pixel: one along the surface normal, the rest in a ring around "
+                    "it. More are slower but miss small bright things less often",
+        default=METHOD.vxgi_cones, min=1, max=32)
+    vxgi_cone_angle: FloatProperty(
+        name="VXGI Cone Angle",
+        description="Width of each cone in degrees: wider is smoother but blurrier",
+        default=METHOD.vxgi_cone_angle, min=5.0, max=180.0)
+    vxgi_distance: FloatProperty(
+        name="VXGI Distance",
+        description="How far a cone travels before it takes the sky's light",
+        default=METHOD.vxgi_distance, min=0.01, soft_max=100.0, subtype='DISTANCE', unit='LENGTH')
+    vxgi_step: FloatProperty(
+        name="VXGI Step",
+        description="Step length, in cone widths, where nothing is near: smaller is slower and "
+                    "misses thin things less often",
+        default=METHOD.vxgi_step, min=0.1, max=4.0)
+    vxgi_offset: FloatProperty(
+        name="VXGI Offset",
+        description="How far cones start off the surface, in the finest voxels: more avoids "
+                    "surfaces darkening themselves, less keeps contact shadows",
+        default=METHOD.vxgi_offset, min=0.0, soft_max=4.0)
     debug_view: EnumProperty(
         name="Debug View",
         description="Show one stage of the lighting instead of the finished image, to find out "
@@ -207,6 +232,8 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                 "side by side, as the light their texels reflect"),
                ('LPV_GRID', "LPV Grid", "GI Method LPV: the light propagation volume's "
                 "horizontal slices side by side, bottom slice first, as each cell's mean light"),
+               ('VXGI_OCCLUSION', "VXGI Cone Occlusion", "GI Method VXGI: how much of each "
+                "pixel's cones surfaces stopped (white) rather than the sky (black)"),
                ('HYBRID', "Mesh vs Global SDF", "SDF trace only: green = hit in the mesh SDFs "
                 "(first 1.8 m), blue = hit in the global SDF clipmaps, black = miss"),
                ('SC_FINAL', "Surface Cache", "The cards' final lighting, seen through the cards "

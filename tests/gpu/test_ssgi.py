@@ -11,7 +11,7 @@
   the probability of the panel's form factor F(x) (SSGI_HITS' green), and E = pi L F(x) is the
   numerical integral of L cos cos / d^2 over the panel (numpy, here).
 - The viewport (view_draw, one iteration per redraw) converges to the F12 image of that view.
-- VXGI is not built: it renders with Lumen and says so.
+- LPV and VXGI are built (tests/gpu/test_lpv.py, tests/gpu/test_vxgi.py).
 """
 import sys
 from pathlib import Path
@@ -233,10 +233,9 @@ def test_ssgi_on_a_floor_under_a_lit_panel(tmp_path):
     assert steps[0]["progress"] == [1, 8] and not steps[0]["converged"]
     assert steps[-1]["progress"] == [8, 8] and steps[-1]["converged"]
     assert abs(vp[under].mean() / ind[under].mean() - 1.0) < 0.03
-    for method in ("VXGI",):
-        m = r[method]
-        assert m["error"] is None and m["method"] == "LUMEN", m
-        assert f"GI Method {method} is not built yet: rendering with Lumen" in m["notes"]
+    m = r["VXGI"]             # every method is built: none falls back to Lumen any more
+    assert m["error"] is None and m["method"] == "VXGI", m
+    assert not any("not built yet" in n for n in m["notes"]), m["notes"]
 
 
 PANEL_DRAW = """
@@ -271,12 +270,15 @@ def test_gi_method_setting_and_what_the_render_panel_shows(tmp_path):
     assert all(p in r["SSGI"] for p in ssgi) and not any(p in r["SSGI"] for p in rsm)
     assert all(p in r["RSM"] for p in rsm) and not any(p in r["RSM"] for p in ssgi)
     assert "gi_gather" in r["LUMEN"] and "gi_gather" not in r["SSGI"]
-    assert "label: Not built yet: renders with Lumen" in r["VXGI"]
-    assert "label: Not built yet: renders with Lumen" not in r["LPV"]
+    assert not any("Not built yet" in line for m in r["items"] for line in r[m])
     assert all(p in r["LPV"] for p in ("lpv_cells", "lpv_iterations", "lpv_occlusion"))
+    assert all(p in r["VXGI"] for p in ("vxgi_cones", "vxgi_cone_angle", "vxgi_distance",
+                                        "vxgi_step", "vxgi_offset"))
+    assert "gi_gather" not in r["VXGI"]
     # one sub-panel per built method, drawn only while it is the chosen one
     subs = {"LUMEN": "RENDER_PT_lumen_gi_lumen", "SSGI": "RENDER_PT_lumen_gi_ssgi",
-            "RSM": "RENDER_PT_lumen_gi_rsm", "LPV": "RENDER_PT_lumen_gi_lpv"}
+            "RSM": "RENDER_PT_lumen_gi_rsm", "LPV": "RENDER_PT_lumen_gi_lpv",
+            "VXGI": "RENDER_PT_lumen_gi_vxgi"}
     for method in r["items"]:
         shown = [p for p in subs.values() if p in r[method + "_panels"]]
         assert shown == ([subs[method]] if method in subs else []), (method, shown)
