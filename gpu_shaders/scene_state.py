@@ -16,6 +16,9 @@ and re-uploads only what changed:
     lights                            the light rows changed (rows and their RGBA32F texture)
     cards                             the instances' card hashes or the card atlas layout changed
                                       (surface_cache.SurfaceCache: card layers, tables, lighting)
+It also holds the frame's G-buffer inputs, synced by engine.frame: `extraction`
+(operators.extract.ExtractionCache: MeshData re-read only for what the depsgraph reported) and
+`mesh_batches` (mesh_batches.MeshBatches: a batch per unique mesh, the instance matrix table).
 `plan()` is the decision alone (numpy only, no gpu); `sync()` plans and uploads (needs a GPU
 context). `uploads` counts uploads per resource, `last_changes` is the set of the last sync.
 """
@@ -81,6 +84,9 @@ class SceneState:
         self.gi_sky = None           # key of the sky maps the GI history was made with
         self.sky = SkyLight()        # the world's maps on the GPU (uploaded when they change)
         self.bake = None
+        self.extraction = None       # operators.extract.ExtractionCache (engine.frame makes it)
+        self.mesh_batches = None     # mesh_batches.MeshBatches: the G-buffer's meshes and
+                                     # instance table on the GPU
 
     def plan(self, bake, matrices: dict, lights) -> set:
         """The resources a sync with these inputs would upload (no side effects)."""
@@ -175,5 +181,7 @@ class SceneState:
             out.update(self.probes.stats())
         if self.voxel_lighting is not None:
             out.update(self.voxel_lighting.stats())
+        if self.mesh_batches is not None:
+            out.update(self.mesh_batches.stats())
         out.update(self.sky.stats())
         return out
