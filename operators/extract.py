@@ -511,11 +511,16 @@ def mesh_key(inst) -> tuple:
     """What identifies an instance's evaluated mesh + materials across frames (ExtractionCache):
     the original Mesh's name when the object evaluates to it unchanged (linked duplicates share
     it), else the object's own name (modifiers or shape keys give each object its mesh), and
-    the names of its material slots' materials."""
+    the names of its material slots' materials. An instance (collection, particles, geometry
+    nodes) is keyed by its evaluated mesh's pointer as well: one instancer can show several
+    meshes under one source object, and a re-evaluated one is then simply read again."""
     obj = inst.object
     source = obj.original
     data = getattr(source, "data", None)
-    if data is None or len(obj.modifiers) or getattr(data, "shape_keys", None) is not None:
+    if inst.is_instance:
+        geo = ("instance", source.name, obj.data.name if obj.data is not None else "",
+               obj.data.as_pointer() if obj.data is not None else 0)
+    elif data is None or len(obj.modifiers) or getattr(data, "shape_keys", None) is not None:
         geo = ("object", source.name)
     else:
         geo = ("mesh", data.name)

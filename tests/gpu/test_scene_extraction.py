@@ -133,3 +133,79 @@ def test_viewport_frames_follow_the_depsgraph(tmp_path):
     still = f["still"]
     assert still["read"] == 0 and still["built"] == 0 and not still["table"]
     assert still["alb"] == deleted["alb"] and still["pos"] == deleted["pos"]
+
+
+INSTANCES = f"""
+from lumen_gi.gpu_shaders import engine, gbuffer
+from lumen_gi.operators.extract import extract_scene
+import viewport_harness
+
+scene = empty_scene(voxel_density=6.0, cache_dir="cache")
+scatter = geometry_nodes_scatter("Scatter")         # a plane and 4 icospheres on its corners
+scatter.data.materials.append(principled("ScatterMat", (0.2, 0.6, 0.3)))
+parts = bpy.data.collections.new("Parts")
+scene.collection.children.link(parts)
+part = cube("Part", 0.5, (0.0, 0.0, 0.25))
+part.data.materials.append(principled("PartMat", (0.8, 0.3, 0.1)))
+for c in part.users_collection:
+    c.objects.unlink(part)
+parts.objects.link(part)
+bpy.context.view_layer.layer_collection.children["Parts"].exclude = True
+first = collection_instancer("InstA", parts, (0.5, 0.5, 0.0))
+second = collection_instancer("InstB", parts, (-0.6, 0.4, 0.0))
+solo = cube("Solo", 0.6, (0.3, -0.8, 0.3))
+solo.rotation_euler = (0.0, 0.0, 0.5)
+solo.scale = (1.0, -1.0, 1.5)                        # mirrored: normals must still face out
+sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
+aimed_camera((3.0, -4.0, 5.0), (0.0, 0.0, 0.0))
+scene.render.engine = "LUMEN_GI"
+scene.render.preview_pixel_size = "1"
+scene.lumen.gi_quality = scene.lumen.viewport_gi_quality = "OFF"
+scene.render.resolution_x = scene.render.resolution_y = {SIZE}
+scene.render.resolution_percentage = 100
+res, err = bake()
+assert err is None, err
+out = []
+
+def step(i):
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    objects, _ = extract_scene(bpy.context.evaluated_depsgraph_get())
+    old = gbuffer.render_gbuffer(objects, R["view_proj"], {SIZE}, {SIZE})
+    ref = {{k: gbuffer.read_texture(old["textures"][k], {SIZE}, {SIZE})
+           for k in ("position", "normal", "albedo")}}
+    both = (ref["position"][..., 3] > 0.5) & (R["position"][..., 3] > 0.5)
+    differ = (ref["position"][..., 3] > 0.5) != (R["position"][..., 3] > 0.5)
+    out.append(dict(
+        objects=len(objects), triangles=R["triangles"], old_triangles=old["triangles"],
+        draws=R["gbuffer_draws"], read=R["meshes_read"], covered=int(both.sum()),
+        coverage_differs=int(differ.sum()),
+        position=float(np.abs(R["position"] - ref["position"])[both, :3].max()),
+        normal=float(np.abs(R["normal"] - ref["normal"])[both, :3].max()),
+        albedo=float(np.abs(R["albedo"] - ref["albedo"])[both, :3].max()),
+        changed=int((np.abs(R["position"] - out[-1]["pos"]).max(-1) > 0.05).sum()) if out else 0,
+        pos=R["position"].copy()))
+    if i == 0:
+        first.location.x += 0.3                      # move a whole collection instance
+
+viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 2, step)
+emit(frames=[{{k: v for k, v in fr.items() if k != "pos"}} for fr in out])
+"""
+
+
+def test_instanced_gbuffer_equals_the_world_space_one(tmp_path):
+    """Collection instances, geometry-nodes instances and a mirrored object: the instanced
+    G-buffer (local-space batches, matrices on the GPU) equals the world-space one built from
+    extract_scene (gbuffer.render_gbuffer), before and after an instancer moved."""
+    run = run_python(INSTANCES, tmp_path, timeout=300)
+    assert run.returncode == 0, run.explain()
+    frames = run.result["frames"]
+    print(frames)
+    for fr in frames:
+        assert fr["objects"] == 8                        # plane, 4 icospheres, 2 parts, Solo
+        assert fr["triangles"] == fr["old_triangles"] > 0
+        assert fr["covered"] > 500 and fr["coverage_differs"] <= 3
+        assert fr["position"] < 1e-4 and fr["normal"] < 1e-3 and fr["albedo"] < 1e-6
+    assert frames[0]["draws"] == 4 and frames[1]["read"] == 0     # plane, ico, part, Solo
+    assert frames[1]["changed"] > 20                                 # the instance moved
+
