@@ -204,23 +204,27 @@ class MeshBatches:
             shader.bind()
             shader.uniform_float("view_proj", mathutils.Matrix(
                 np.asarray(view_proj, np.float64).tolist()))
+            shader.uniform_sampler("instances", self.table)
+            bound = None                  # the textures bound: set again only when they change
             for key, base, count in self.runs:
                 entry = self.entries[key]
                 triangles += entry.triangles * count
                 for batch, a_arr, e_arr in entry.groups:
-                    if dummy is None and (a_arr is None or e_arr is None):
-                        dummy = gpu.types.GPUTexture((1, 1), format='RGBA32F',
-                                                     data=gpu.types.Buffer('FLOAT', 4, [1.0] * 4))
-                    a_tex, a_h = gpu_texture(a_arr) if a_arr is not None else (dummy, 1)
-                    e_tex, e_h = gpu_texture(e_arr) if e_arr is not None else (dummy, 1)
+                    if (id(a_arr), id(e_arr)) != bound:
+                        if dummy is None and (a_arr is None or e_arr is None):
+                            dummy = gpu.types.GPUTexture(
+                                (1, 1), format='RGBA32F',
+                                data=gpu.types.Buffer('FLOAT', 4, [1.0] * 4))
+                        a_tex, a_h = gpu_texture(a_arr) if a_arr is not None else (dummy, 1)
+                        e_tex, e_h = gpu_texture(e_arr) if e_arr is not None else (dummy, 1)
+                        shader.uniform_int("use_albedo_tex", int(a_arr is not None))
+                        shader.uniform_int("use_emit_tex", int(e_arr is not None))
+                        shader.uniform_int("albedo_base_h", int(a_h))
+                        shader.uniform_int("emit_base_h", int(e_h))
+                        shader.uniform_sampler("albedo_tex", a_tex)
+                        shader.uniform_sampler("emit_tex", e_tex)
+                        bound = (id(a_arr), id(e_arr))
                     shader.uniform_int("instance_base", base)
-                    shader.uniform_int("use_albedo_tex", int(a_arr is not None))
-                    shader.uniform_int("use_emit_tex", int(e_arr is not None))
-                    shader.uniform_int("albedo_base_h", int(a_h))
-                    shader.uniform_int("emit_base_h", int(e_h))
-                    shader.uniform_sampler("albedo_tex", a_tex)
-                    shader.uniform_sampler("emit_tex", e_tex)
-                    shader.uniform_sampler("instances", self.table)
                     batch.draw_instanced(shader, instance_start=0, instance_count=count)
                     draws += 1
             gpu.state.depth_test_set('NONE')

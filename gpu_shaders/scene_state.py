@@ -88,9 +88,10 @@ class SceneState:
         self.mesh_batches = None     # mesh_batches.MeshBatches: the G-buffer's meshes and
                                      # instance table on the GPU
 
-    def plan(self, bake, matrices: dict, lights) -> set:
-        """The resources a sync with these inputs would upload (no side effects)."""
-        names, keys, mats = instance_table(bake, matrices)
+    def plan(self, bake, matrices: dict, lights, table=None) -> set:
+        """The resources a sync with these inputs would upload (no side effects); `table`:
+        instance_table(bake, matrices) when the caller has it."""
+        names, keys, mats = table if table is not None else instance_table(bake, matrices)
         rows = np.asarray(lights, np.float32).reshape(-1, 16)
         changes = set()
         if self.mesh_keys is None or frozenset(keys) != self.mesh_keys:
@@ -107,8 +108,9 @@ class SceneState:
 
     def sync(self, bake, matrices: dict, lights) -> set:
         """Upload what changed; returns the set of re-uploaded resources."""
-        changes = self.plan(bake, matrices, lights)
-        names, keys, mats = instance_table(bake, matrices)
+        table = instance_table(bake, matrices)          # a loop over the bake's instances
+        changes = self.plan(bake, matrices, lights, table)
+        names, keys, mats = table
         if "atlas" in changes:
             self._upload_all(bake, names, keys, mats)
         elif "objects" in changes:
