@@ -15,6 +15,7 @@ and the ratios N=max / N=min. Shader compilation happens in the first N's warm-u
 
     .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
                                              [--quality MEDIUM] [--f12-max N]
+    .venv/bin/python bench/object_scaling.py --gbuffer-only [--counts ...] [--size 128]
 """
 from __future__ import annotations
 
@@ -143,6 +144,70 @@ def measure(n: int, args, tmp: Path) -> dict:
     return dict(n=n, bake=bake_seconds, view=view, f12=f12, triangles=R.get("triangles", 0))
 
 
+def gbuffer_only(counts, size: int, repeat: int) -> list:
+    """[(n, old ms, new ms, meshes read by a still new frame)]: extraction + G-buffer alone, in
+    one GPU context, no bake: the old path (extract_scene + gbuffer.render_gbuffer: every mesh
+    read, world-space corners in numpy, new batches) against a still frame of the new one
+    (ExtractionCache.update + MeshBatches.update + draw), each followed by a read-back of the
+    position attachment so the GPU's work is in the time."""
+    import bpy
+
+    rows = []
+
+    def job(depsgraph, n):
+        from lumen_gi.gpu_shaders import engine, gbuffer
+        from lumen_gi.gpu_shaders.mesh_batches import MeshBatches
+        from lumen_gi.operators.extract import ExtractionCache, extract_scene
+
+        vp, _, _ = engine.view_projection(depsgraph, depsgraph.scene.camera, size, size)
+        ext, batches = ExtractionCache(), MeshBatches()
+        old, new, reads = [], [], []
+        for _ in range(repeat + 1):
+            t = time.perf_counter()
+            objects, _ = extract_scene(depsgraph)
+            g = gbuffer.render_gbuffer(objects, vp, size, size)
+            gbuffer.read_texture(g["textures"]["position"], size, size)
+            old.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            _, _, keys, meshes, mats, visible = ext.update(depsgraph)
+            t1 = time.perf_counter()
+            batches.update(keys, meshes, mats, visible)
+            t2 = time.perf_counter()
+            g = batches.draw(vp, size, size)
+            gbuffer.read_texture(g["textures"]["position"], size, size)
+            new.append((time.perf_counter() - t, t1 - t, t2 - t1, time.perf_counter() - t2))
+            reads.append(ext.reads)
+        parts = [statistics.median(x[k] for x in new[1:]) * 1000 for k in range(4)]
+        rows.append((n, statistics.median(old[1:]) * 1000, parts[0], reads[-1], reads[0],
+                     parts[1:]))
+
+    rows_n = []
+    for n in counts:
+        scene = build_scene(n, size)
+        rows_n.append(n)
+
+        class GBufferBench(bpy.types.RenderEngine):
+            bl_idname = "LUMEN_GBUFFER_BENCH"
+            bl_label = "G-buffer bench"
+            bl_use_gpu_context = True
+
+            def render(self, depsgraph):
+                try:
+                    job(depsgraph, len(rows_n) and rows_n[-1])
+                except Exception:
+                    import traceback
+                    traceback.print_exc()
+                self.end_result(self.begin_result(0, 0, 4, 4))
+
+        bpy.utils.register_class(GBufferBench)
+        scene.render.engine = GBufferBench.bl_idname
+        try:
+            bpy.ops.render.render()
+        finally:
+            bpy.utils.unregister_class(GBufferBench)
+    return rows
+
+
 def fmt(s: dict) -> str:
     return ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}" for k, v in s.items())
 
@@ -156,6 +221,8 @@ def main():
     ap.add_argument("--density", type=float, default=8.0, help="bake voxels per metre")
     ap.add_argument("--f12-max", type=int, default=1 << 30,
                     help="skip F12 above this many objects (a GI F12 of 1,000 takes hours)")
+    ap.add_argument("--gbuffer-only", action="store_true",
+                    help="time extraction + G-buffer alone, old path against new, no bake")
     args = ap.parse_args()
 
     import tempfile
@@ -163,6 +230,17 @@ def main():
     import demo
 
     results = []
+    if args.gbuffer_only:
+        demo.load_addon()
+        rows = gbuffer_only(args.counts, args.size, args.repeat)
+        for n, old, new, reads, first, (walk, table, draw) in rows:
+            print(f"N={n:5d}: extraction + G-buffer, every mesh read (old) {old:8.1f} ms, still "
+                  f"frame (new) {new:7.1f} ms (instance walk {walk:.1f}, instance table "
+                  f"{table:.1f}, draws + read-back {draw:.1f}; {reads} meshes read, {first} on "
+                  f"the first)")
+        print(f"ratio N={rows[-1][0]} / N={rows[0][0]}: old {rows[-1][1] / rows[0][1]:.2f}, "
+              f"new {rows[-1][2] / rows[0][2]:.2f}")
+        return
     with tempfile.TemporaryDirectory() as tmp:
         demo.load_addon()
         for n in args.counts:
