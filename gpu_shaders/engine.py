@@ -1,7 +1,8 @@
 """The Lumen GI render engine (preview): G-buffer, direct light, dynamic global illumination.
 
 `frame()` runs, for the scene camera (render) or the viewport's view (view_draw):
-    G-buffer        gbuffer.py: the evaluated meshes drawn with gpu batches
+    G-buffer        mesh_batches.py: the unique meshes' batches kept on the GPU, drawn instanced
+                    (the extraction re-reads only what view_update found changed)
     direct light    direct_light.py: lights with SDF cone-traced soft shadows (and, with GI off,
                     SDF-occluded sky light)
     GI              gi.py: global SDF clipmaps, surface cache (cards: direct light, radiosity
@@ -27,13 +28,16 @@ PROBE_FALLBACK (green: interpolated from probes, red: traced per pixel).
 GPU inputs live in a scene_state.SceneState owned by the engine instance, as Cycles' session
 is: a viewport's engine keeps one for its lifetime, and a redraw re-uploads only what changed
 (the object table for moved objects, the light rows for changed lights, the brick atlas and
-indirection only when the set of baked meshes changed, the card textures when the cards did);
+indirection only when the set of baked meshes changed, the card textures when the cards did;
+the G-buffer's mesh batches for meshes the depsgraph reported edited, its instance table for
+moved objects);
 an F12 render makes its own and frees it before it returns. F12 (`final=True`) accumulates GI
 from scratch (GISettings.render_schedule: deterministic) and reads back only the passes it
 writes; the viewport adds one GI iteration per redraw to its history, draws the Combined
 texture as it is on the GPU (no read-back) through Blender's display transform, says
 "refining n/N" until the history is full and asks for redraws until then. `view_update`
-reads depsgraph.updates into LAST_VIEW_UPDATE and tags a redraw. Compiled passes are cached
+reads depsgraph.updates into LAST_VIEW_UPDATE, marks the objects, meshes, materials and images
+it names for the staleness check and the extraction cache to read again, and tags a redraw. Compiled passes are cached
 per process and freed at exit before Blender's GPU module (gpu_shaders.free_shaders).
 
 It works headless: Blender gives a RenderEngine with bl_use_gpu_context a GPU context in
@@ -211,6 +215,15 @@ def mesh_matrices(depsgraph) -> dict:
     return instance_matrices(depsgraph)
 
 
+def extraction(state):
+    """The engine instance's ExtractionCache (made on first use: everything is read once)."""
+    from ..operators.extract import ExtractionCache
+
+    if state.extraction is None:
+        state.extraction = ExtractionCache()
+    return state.extraction
+
+
 def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
           view="COMBINED", final=True):
     """One frame, for render() (final: F12, accumulates GI from scratch) and view_draw (one more
@@ -219,10 +232,10 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     reads the passes it writes, the viewport draws Combined), or `shown` (numpy) for a debug
     view. Fills LAST_RENDER with the frame's numbers (and images only when KEEP_IMAGES)."""
     from ..lumen_addon import staleness
-    from ..operators.extract import extract_scene, render_only_geometry
+    from ..operators.extract import render_only_geometry
     from ..operators.lights import light_table
     from ..operators.world_capture import world_light
-    from . import composite, compute, direct_light, gbuffer, gi, gi_methods, gi_settings
+    from . import composite, compute, direct_light, gi, gi_methods, gi_settings, mesh_batches
 
     t0 = time.perf_counter()
     bake, source = scene_bake(scene)
@@ -233,11 +246,15 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         objects, warnings = None, []
         matrices = mesh_matrices(depsgraph)
     else:
-        objects, warnings = extract_scene(depsgraph)
+        ext = extraction(state)
+        objects, warnings, keys, meshes, mats, visible = ext.update(depsgraph)
         matrices = {ob.name: ob.matrix_world for ob in objects}
         t_stale = time.perf_counter()
-        stale = STALE[scene.name] = state.stale.changed(bake, objects,
-                                                        render_only_geometry(depsgraph))
+        if ext.changed or state.stale.bake is not bake or state.stale.pending():
+            stale = state.stale.changed(bake, objects, render_only_geometry(depsgraph))
+        else:                    # same instances, no mesh re-read: the same verdicts
+            stale = state.stale.unchanged()
+        STALE[scene.name] = stale
     stale_seconds = time.perf_counter() - t_stale
     t1 = time.perf_counter()
     changes = state.sync(bake, matrices, lights)
@@ -252,6 +269,9 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        extract_seconds=t1 - t0, sync_seconds=t2 - t1)
     LAST_RENDER.update(stale=list(stale or []), gone=list(state.gone),
                        stale_hashed=state.stale.hashed, stale_seconds=stale_seconds)
+    if state.extraction is not None:
+        LAST_RENDER.update(meshes_read=state.extraction.reads,
+                           meshes_read_total=state.extraction.reads_total)
     if view in TRACE_VIEWS:
         inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
         if view == "HYBRID":
@@ -269,7 +289,10 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     method, method_notes = gi_methods.from_scene(engine_settings(scene))   # LUMEN, SSGI or RSM
     sky = state.sky
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
-    gbuf = gbuffer.render_gbuffer(objects, view_proj, width, height)
+    if state.mesh_batches is None:
+        state.mesh_batches = mesh_batches.MeshBatches()
+    state.mesh_batches.update(keys, meshes, mats, visible)
+    gbuf = state.mesh_batches.draw(view_proj, width, height)
     t3 = time.perf_counter()
     sky_cones = direct_light.SKY_CONES if gi_methods.direct_has_sky(method, gi_cfg.enabled) else 0
     if final:
@@ -322,6 +345,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
             f"{name}: its transform cannot be inverted (a scale of 0?): it casts and bounces no "
             f"light" for name in state.left_out], triangles=gbuf["triangles"],
         gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
+        gbuffer_batches_built=gbuf["batches_built"],
+        instance_table_uploaded=gbuf["instance_table_uploaded"],
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
         direct_part=out.get("part", (0, direct_light.LIGHT_SAMPLES)),
@@ -500,6 +525,7 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         state, which re-uploads only the resources those changes touch."""
         flags = set()
         edited, materials, images = set(), set(), False   # for the staleness check's re-hashing
+        meshes, unsure = set(), False                      # for the extraction cache
         for u in depsgraph.updates:
             ident = u.id
             if isinstance(ident, bpy.types.Object):
@@ -508,19 +534,29 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
                 if u.is_updated_geometry:
                     flags.add("geometry")
                     edited.add(ident.name)    # (not shading: selection is shading too)
+                    data = getattr(ident.original, "data", None)
+                    if isinstance(data, bpy.types.Mesh):
+                        meshes.add(data.name)
             elif isinstance(ident, bpy.types.Light):
                 flags.add("light")
             elif isinstance(ident, (bpy.types.Mesh, bpy.types.Material)):
                 flags.add("geometry")
                 if isinstance(ident, bpy.types.Material):
                     materials.add(ident.name)
+                elif u.is_updated_geometry:  # (a material edit lists its meshes as shading)
+                    meshes.add(ident.name)
             elif isinstance(ident, bpy.types.World):
                 flags.add("world")
             elif isinstance(ident, bpy.types.Image):
                 images = True
+            elif u.is_updated_geometry and not isinstance(
+                    ident, (bpy.types.Scene, bpy.types.Collection, bpy.types.Camera,
+                            bpy.types.NodeTree)):
+                unsure = True                # an ID we do not follow: read everything again
         if getattr(self, "_state", None) is None:
             self._state = SceneState()
         self._state.stale.mark(edited, materials, images)
+        extraction(self._state).mark(edited, meshes, materials, images, unsure)
         if len(depsgraph.updates):
             self._state.epoch += 1     # what was drawn may have changed: direct light again
         LAST_VIEW_UPDATE["flags"] = sorted(flags)

@@ -1,7 +1,10 @@
 """The G-buffer pass: the evaluated scene's meshes rasterised with gpu batches (glsl/gbuffer.glsl).
 
-Mesh data and materials come from `operators.extract.extract_scene` (the same extraction the
-bake uses). Every triangle is drawn with per-corner world positions and normals and its
+Mesh data and materials come from `operators.extract` (the same extraction the bake uses). The
+engine's frame draws through mesh_batches.py (local-space batches per unique mesh kept on the GPU,
+instanced with a matrix table; its vertex stage glsl/gbuffer_instanced.glsl, its fragment stage
+this file's); `render_gbuffer` below, which builds world-space corners in numpy on every call, is
+what RSM's light-view maps still use. Every triangle is drawn with per-corner normals and its
 material's values into one framebuffer with four RGBA32F colour attachments (MRT works on
 llvmpipe) and a 32-bit float depth buffer:
     position (world xyz, w = coverage), normal (world), albedo (linear base colour),

@@ -16,6 +16,9 @@ and re-uploads only what changed:
     lights                            the light rows changed (rows and their RGBA32F texture)
     cards                             the instances' card hashes or the card atlas layout changed
                                       (surface_cache.SurfaceCache: card layers, tables, lighting)
+It also holds the frame's G-buffer inputs, synced by engine.frame: `extraction`
+(operators.extract.ExtractionCache: MeshData re-read only for what the depsgraph reported) and
+`mesh_batches` (mesh_batches.MeshBatches: a batch per unique mesh, the instance matrix table).
 `plan()` is the decision alone (numpy only, no gpu); `sync()` plans and uploads (needs a GPU
 context). `uploads` counts uploads per resource, `last_changes` is the set of the last sync.
 """
@@ -85,10 +88,14 @@ class SceneState:
         self.epoch = 0               # depsgraph updates seen (engine.view_update) and syncs
                                      # with changes: what the progressive direct light keys on
         self.bake = None
+        self.extraction = None       # operators.extract.ExtractionCache (engine.frame makes it)
+        self.mesh_batches = None     # mesh_batches.MeshBatches: the G-buffer's meshes and
+                                     # instance table on the GPU
 
-    def plan(self, bake, matrices: dict, lights) -> set:
-        """The resources a sync with these inputs would upload (no side effects)."""
-        names, keys, mats = instance_table(bake, matrices)
+    def plan(self, bake, matrices: dict, lights, table=None) -> set:
+        """The resources a sync with these inputs would upload (no side effects); `table`:
+        instance_table(bake, matrices) when the caller has it."""
+        names, keys, mats = table if table is not None else instance_table(bake, matrices)
         rows = np.asarray(lights, np.float32).reshape(-1, 16)
         changes = set()
         if self.mesh_keys is None or frozenset(keys) != self.mesh_keys:
@@ -105,8 +112,9 @@ class SceneState:
 
     def sync(self, bake, matrices: dict, lights) -> set:
         """Upload what changed; returns the set of re-uploaded resources."""
-        changes = self.plan(bake, matrices, lights)
-        names, keys, mats = instance_table(bake, matrices)
+        table = instance_table(bake, matrices)          # a loop over the bake's instances
+        changes = self.plan(bake, matrices, lights, table)
+        names, keys, mats = table
         if "atlas" in changes:
             self._upload_all(bake, names, keys, mats)
         elif "objects" in changes:
@@ -179,5 +187,7 @@ class SceneState:
             out.update(self.probes.stats())
         if self.voxel_lighting is not None:
             out.update(self.voxel_lighting.stats())
+        if self.mesh_batches is not None:
+            out.update(self.mesh_batches.stats())
         out.update(self.sky.stats())
         return out

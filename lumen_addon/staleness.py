@@ -58,6 +58,18 @@ class StaleCheck:
         self.dirty_materials = set()
         self.dirty_textures = False
         self.hashed = 0           # objects hashed by the last check (tests, the cost)
+        self.last = []            # the last check's answer
+
+    def pending(self) -> bool:
+        """Whether marks wait for the next check (the caller may skip a check otherwise when
+        the objects did not change)."""
+        return bool(self.dirty or self.dirty_materials or self.dirty_textures)
+
+    def unchanged(self) -> list:
+        """The last answer again, for a frame whose objects the caller knows did not change
+        (same instances, no mesh re-read, same bake, nothing marked): nothing is hashed."""
+        self.hashed = 0
+        return self.last
 
     def mark(self, names=(), materials=(), textures=False):
         """Objects (outliner names), materials (names) or any image texture edited since the
@@ -106,6 +118,7 @@ class StaleCheck:
                 out.append(obj.name)
         self.verdicts = verdicts
         self.dirty, self.dirty_materials, self.dirty_textures = set(), set(), False
+        self.last = out
         return out
 
 

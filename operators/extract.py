@@ -13,6 +13,10 @@ Emission Strength, each a value or an Image Texture linked straight to the socke
 reroutes). Anything else falls back to the material's viewport display colour. Nothing here
 raises for bad materials: every fallback is recorded as a warning naming the object and the
 material, and `extract_scene` returns those warnings for the operator to report.
+
+The render engine does not call `extract_scene` every frame: its `ExtractionCache` keeps each
+unique mesh's MeshData between frames and re-reads only what view_update found in
+depsgraph.updates (and everything on its first frame: F12 makes a new one per render).
 """
 from __future__ import annotations
 
@@ -501,6 +505,133 @@ def extract_scene(depsgraph, view_layer=None):
             materials=data.materials,
             camera_visible=bool(getattr(source, "visible_camera", True))))
     return out, ex.warnings()
+
+
+def mesh_key(inst) -> tuple:
+    """What identifies an instance's evaluated mesh + materials across frames (ExtractionCache):
+    the original Mesh's name when the object evaluates to it unchanged (linked duplicates share
+    it), else the object's own name (modifiers or shape keys give each object its mesh), and
+    the names of its material slots' materials. An instance (collection, particles, geometry
+    nodes) is keyed by its evaluated mesh's pointer as well: one instancer can show several
+    meshes under one source object, and a re-evaluated one is then simply read again."""
+    obj = inst.object
+    source = obj.original
+    data = getattr(source, "data", None)
+    if inst.is_instance:
+        geo = ("instance", source.name, obj.data.name if obj.data is not None else "",
+               obj.data.as_pointer() if obj.data is not None else 0)
+    elif data is None or len(obj.modifiers) or getattr(data, "shape_keys", None) is not None:
+        geo = ("object", source.name)
+    else:
+        geo = ("mesh", data.name)
+    return geo + (tuple(s.material.name if s.material else "" for s in obj.material_slots),)
+
+
+class _Cached:
+    """A MeshData kept between frames and what invalidates it: the outliner names of the
+    objects and meshes it came from, its materials, whether it samples image textures, and a
+    cheap signature of the evaluated mesh (vertex and face counts) checked every frame."""
+
+    def __init__(self, data, objects, mesh, materials, signature):
+        self.data, self.objects, self.mesh = data, objects, mesh
+        self.materials, self.signature = materials, signature
+        self.textured = data.uvs is not None
+
+
+def _signature(obj) -> tuple:
+    data = obj.data
+    return (len(data.vertices), len(data.polygons)) if data is not None else (0, 0)
+
+
+class ExtractionCache:
+    """The scene's extraction kept by a render engine instance between frames, re-read only
+    where the depsgraph said something changed (view_update calls `mark` with the names it
+    found in depsgraph.updates); everything on the first frame, on F12 (a new cache per render)
+    and when unsure. A frame still walks every instance for its name, key and matrix (what
+    Blender's depsgraph gives only per instance), but reads no mesh data unless a mesh is new,
+    edited, re-materialled or changed its vertex/face counts. `reads` counts the meshes read by
+    the last update (tests: a still frame reads none)."""
+
+    def __init__(self):
+        self.cache = {}           # mesh_key -> _Cached
+        self.everything = True
+        self.objects, self.meshes, self.materials = set(), set(), set()
+        self.images = False
+        self.reads = 0            # meshes read by the last update
+        self.reads_total = 0
+        self.names = None         # instance names of the last update
+        self.changed = True       # the last update read a mesh or the instance set changed
+
+    def mark(self, objects=(), meshes=(), materials=(), images=False, everything=False):
+        """Objects with a geometry update, meshes with one, edited materials (names), any image
+        edited, or unsure (everything is read again): the next update re-reads what they
+        concern."""
+        self.objects.update(objects)
+        self.meshes.update(meshes)
+        self.materials.update(materials)
+        self.images = self.images or bool(images)
+        self.everything = self.everything or bool(everything)
+
+    def _invalidate(self):
+        if self.everything:
+            self.cache = {}
+        elif self.objects or self.meshes or self.materials or self.images:
+            self.cache = {k: c for k, c in self.cache.items()
+                          if not (c.objects & self.objects or c.mesh in self.meshes
+                                  or c.materials & self.materials
+                                  or (self.images and c.textured))}
+        self.everything, self.images = False, False
+        self.objects, self.meshes, self.materials = set(), set(), set()
+
+    def update(self, depsgraph, view_layer=None):
+        """(ObjectInputs, warnings, keys, MeshData by key, matrices float64 [n, 4, 4], camera
+        visibility bool [n]) of every visible mesh instance, as extract_scene's."""
+        self._invalidate()
+        ex = Extractor()
+        geometry = {}
+        used, keys, objects, matrices, visible = {}, [], [], [], []
+        reads = 0
+        for inst, name in mesh_instances(depsgraph, view_layer):
+            obj = inst.object
+            key = mesh_key(inst)
+            hit = used.get(key)
+            if hit is None:
+                hit = self.cache.get(key)
+                sig = _signature(obj)
+                if hit is None or hit.signature != sig:
+                    source = obj.original
+                    owners = {source.name}
+                    if inst.is_instance and inst.parent is not None:
+                        owners.add(inst.parent.original.name)
+                    data = getattr(source, "data", None)
+                    hit = _Cached(extract_mesh(obj, ex, geometry), owners,
+                                  data.name if data is not None else None, set(key[-1]), sig)
+                    reads += 1
+                used[key] = hit
+            data = hit.data
+            for message in data.warnings:
+                ex.warn(name, message)
+            source = obj.original
+            props = getattr(source, "lumen", None)
+            m = np.array(inst.matrix_world, dtype=np.float64)
+            cam = bool(getattr(source, "visible_camera", True))
+            keys.append(key)
+            matrices.append(m)
+            visible.append(cam)
+            objects.append(ObjectInput(
+                name=name, vertices=data.vertices, triangles=data.triangles, matrix_world=m,
+                two_sided=bool(props.two_sided) if props is not None else False,
+                resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
+                normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
+                materials=data.materials, camera_visible=cam))
+        names = [o.name for o in objects]
+        self.changed = bool(reads) or names != self.names
+        self.names, self.cache = names, used
+        self.reads = reads
+        self.reads_total += reads
+        meshes = {k: c.data for k, c in used.items()}
+        mats = np.stack(matrices) if matrices else np.zeros((0, 4, 4))
+        return objects, ex.warnings(), keys, meshes, mats, np.array(visible, bool)
 
 
 def extract_objects(depsgraph, view_layer=None):

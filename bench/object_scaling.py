@@ -1,0 +1,269 @@
+"""Benchmark: frame time against object count (issue 10: 1,000 objects at most twice 10).
+
+Scene per N: a 20 x 20 m floor and N small icospheres (80 triangles) on a grid over it, half of
+them unique meshes (each its own Mesh datablock, scaled differently so each bakes its own SDF),
+half linked duplicates of those (obj.copy(): the same Mesh); five shared materials; a sun; a
+camera above one side of the floor that sees most of them. Baked at `--density` voxels/m.
+For N = 10, 100, 1000 (`--counts`) in one process, same resolution:
+  viewport   the engine's own view_draw through tools/viewport_harness.py at `--size`^2, Pixel
+             Size 1, viewport quality `--quality`: one warm-up redraw (first frame: everything
+             extracted and uploaded) then `--repeat` still redraws, median, and the split of the
+             last still frame from LAST_RENDER (extract, sync, G-buffer, direct, GI)
+  F12        bpy.ops.render.render at `--size`^2, render_frames = bounces = 1 (one GI iteration),
+             one warm-up then `--repeat` timed, median and split
+and the ratios N=max / N=min. Shader compilation happens in the first N's warm-ups.
+
+    .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
+                                             [--quality MEDIUM] [--f12-max N]
+    .venv/bin/python bench/object_scaling.py --gbuffer-only [--counts ...] [--size 128]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+
+SPLIT = ("frame_seconds", "extract_seconds", "sync_seconds", "gbuffer_seconds", "direct_seconds",
+         "gi_seconds")
+
+
+def build_scene(n: int, size: int):
+    import bmesh
+    import bpy
+    import mathutils
+    import numpy as np
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    mats = []
+    for i, c in enumerate(((0.8, 0.8, 0.8), (0.8, 0.2, 0.2), (0.2, 0.7, 0.3), (0.2, 0.3, 0.8),
+                           (0.8, 0.7, 0.2))):
+        mat = bpy.data.materials.new(f"Mat{i}")
+        mat.use_nodes = True
+        mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*c, 1.0)
+        mats.append(mat)
+    floor_mesh = bpy.data.meshes.new("Floor")
+    bm = bmesh.new()
+    bmesh.ops.create_grid(bm, x_segments=1, y_segments=1, size=10.0)
+    bm.to_mesh(floor_mesh)
+    bm.free()
+    floor_mesh.materials.append(mats[0])
+    scene.collection.objects.link(bpy.data.objects.new("Floor", floor_mesh))
+    base = bpy.data.meshes.new("Ico")
+    bm = bmesh.new()
+    bmesh.ops.create_icosphere(bm, subdivisions=1, radius=0.25)
+    bm.to_mesh(base)
+    bm.free()
+    unique = max(n // 2, 1)
+    side = int(np.ceil(np.sqrt(n)))
+    meshes = []
+    for i in range(n):
+        x = ((i % side) + 0.5) / side * 18.0 - 9.0
+        y = ((i // side) + 0.5) / side * 18.0 - 9.0
+        if i < unique:
+            mesh = base.copy()
+            mesh.name = f"Ico{i}"
+            mesh.transform(mathutils.Matrix.Diagonal((1.0, 1.0, 1.0 + 0.5 * i / unique, 1.0)))
+            mesh.materials.append(mats[1 + i % 4])
+            meshes.append(mesh)
+        else:
+            mesh = meshes[i % unique]          # a linked duplicate
+        obj = bpy.data.objects.new(f"Obj{i}", mesh)
+        obj.location = (x, y, 0.3)
+        scene.collection.objects.link(obj)
+    bpy.data.meshes.remove(base)
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = 3.0
+    sun.rotation_euler = (0.6, 0.2, 0.8)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    for obj in (sun, cam):
+        scene.collection.objects.link(obj)
+    cam.location = (0.0, -13.0, 9.0)
+    cam.rotation_euler = (mathutils.Vector((0, -1.0, 0)) - cam.location).to_track_quat(
+        "-Z", "Y").to_euler()
+    scene.camera = cam
+    scene.world = bpy.data.worlds.new("World")
+    scene.world.color = (0.05, 0.05, 0.06)
+    scene.render.resolution_x = scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    return scene
+
+
+def split(R) -> dict:
+    return {k.replace("_seconds", ""): R.get(k, 0.0) * 1000 for k in SPLIT}
+
+
+def measure(n: int, args, tmp: Path) -> dict:
+    import bpy
+
+    import viewport_harness
+    from lumen_gi.gpu_shaders import engine
+
+    scene = build_scene(n, args.size)
+    scene.lumen.bake.cache_dir = str(tmp / f"cache{n}")
+    scene.lumen.bake.voxel_density = args.density
+    t = time.perf_counter()
+    bpy.ops.lumen.bake()
+    bake_seconds = time.perf_counter() - t
+    scene.render.engine = "LUMEN_GI"
+    scene.render.preview_pixel_size = "1"
+    scene.lumen.engine.render_quality = scene.lumen.engine.viewport_quality = args.quality
+    scene.lumen.engine.render_frames = 1
+    scene.lumen.engine.bounces = 1
+    rows = []
+
+    def record(i):
+        R = engine.LAST_RENDER
+        if "error" in R:
+            raise RuntimeError(R.get("traceback", R["error"]))
+        rows.append(dict(split(R), meshes_read=R.get("meshes_read", -1),
+                         draws=R.get("gbuffer_draws", 0), triangles=R.get("triangles", 0)))
+
+    out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
+                               redraws=args.repeat + 1, on_redraw=record)
+    view = dict(first=out["seconds"][0] * 1000,
+                median=statistics.median(out["seconds"][1:]) * 1000, split=rows[-1],
+                first_split=rows[0])
+    if n > args.f12_max:
+        return dict(n=n, bake=bake_seconds, view=view, f12=None, triangles=rows[-1]["triangles"])
+    times = []
+    for _ in range(args.repeat + 1):
+        t = time.perf_counter()
+        bpy.ops.render.render()
+        times.append(time.perf_counter() - t)
+        if "error" in engine.LAST_RENDER:
+            raise RuntimeError(engine.LAST_RENDER.get("traceback"))
+    R = engine.LAST_RENDER
+    f12 = dict(median=statistics.median(times[1:]) * 1000, split=split(R),
+               iterations=R.get("gi_iterations", 0), meshes_read=R.get("meshes_read", -1))
+    return dict(n=n, bake=bake_seconds, view=view, f12=f12, triangles=R.get("triangles", 0))
+
+
+def gbuffer_only(counts, size: int, repeat: int) -> list:
+    """[(n, old ms, new ms, meshes read by a still new frame)]: extraction + G-buffer alone, in
+    one GPU context, no bake: the old path (extract_scene + gbuffer.render_gbuffer: every mesh
+    read, world-space corners in numpy, new batches) against a still frame of the new one
+    (ExtractionCache.update + MeshBatches.update + draw), each followed by a read-back of the
+    position attachment so the GPU's work is in the time."""
+    import bpy
+
+    rows = []
+
+    def job(depsgraph, n):
+        from lumen_gi.gpu_shaders import engine, gbuffer
+        from lumen_gi.gpu_shaders.mesh_batches import MeshBatches
+        from lumen_gi.operators.extract import ExtractionCache, extract_scene
+
+        vp, _, _ = engine.view_projection(depsgraph, depsgraph.scene.camera, size, size)
+        ext, batches = ExtractionCache(), MeshBatches()
+        old, new, reads = [], [], []
+        for _ in range(repeat + 1):
+            t = time.perf_counter()
+            objects, _ = extract_scene(depsgraph)
+            g = gbuffer.render_gbuffer(objects, vp, size, size)
+            gbuffer.read_texture(g["textures"]["position"], size, size)
+            old.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            _, _, keys, meshes, mats, visible = ext.update(depsgraph)
+            t1 = time.perf_counter()
+            batches.update(keys, meshes, mats, visible)
+            t2 = time.perf_counter()
+            g = batches.draw(vp, size, size)
+            gbuffer.read_texture(g["textures"]["position"], size, size)
+            new.append((time.perf_counter() - t, t1 - t, t2 - t1, time.perf_counter() - t2))
+            reads.append(ext.reads)
+        parts = [statistics.median(x[k] for x in new[1:]) * 1000 for k in range(4)]
+        rows.append((n, statistics.median(old[1:]) * 1000, parts[0], reads[-1], reads[0],
+                     parts[1:]))
+
+    rows_n = []
+    for n in counts:
+        scene = build_scene(n, size)
+        rows_n.append(n)
+
+        class GBufferBench(bpy.types.RenderEngine):
+            bl_idname = "LUMEN_GBUFFER_BENCH"
+            bl_label = "G-buffer bench"
+            bl_use_gpu_context = True
+
+            def render(self, depsgraph):
+                try:
+                    job(depsgraph, len(rows_n) and rows_n[-1])
+                except Exception:
+                    import traceback
+                    traceback.print_exc()
+                self.end_result(self.begin_result(0, 0, 4, 4))
+
+        bpy.utils.register_class(GBufferBench)
+        scene.render.engine = GBufferBench.bl_idname
+        try:
+            bpy.ops.render.render()
+        finally:
+            bpy.utils.unregister_class(GBufferBench)
+    return rows
+
+
+def fmt(s: dict) -> str:
+    return ", ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}" for k, v in s.items())
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    ap.add_argument("--counts", type=int, nargs="+", default=[10, 100, 1000])
+    ap.add_argument("--size", type=int, default=128)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--quality", default="MEDIUM", choices=("OFF", "LOW", "MEDIUM", "HIGH"))
+    ap.add_argument("--density", type=float, default=8.0, help="bake voxels per metre")
+    ap.add_argument("--f12-max", type=int, default=1 << 30,
+                    help="skip F12 above this many objects (a GI F12 of 1,000 takes hours)")
+    ap.add_argument("--gbuffer-only", action="store_true",
+                    help="time extraction + G-buffer alone, old path against new, no bake")
+    args = ap.parse_args()
+
+    import tempfile
+
+    import demo
+
+    results = []
+    if args.gbuffer_only:
+        demo.load_addon()
+        rows = gbuffer_only(args.counts, args.size, args.repeat)
+        for n, old, new, reads, first, (walk, table, draw) in rows:
+            print(f"N={n:5d}: extraction + G-buffer, every mesh read (old) {old:8.1f} ms, still "
+                  f"frame (new) {new:7.1f} ms (instance walk {walk:.1f}, instance table "
+                  f"{table:.1f}, draws + read-back {draw:.1f}; {reads} meshes read, {first} on "
+                  f"the first)")
+        print(f"ratio N={rows[-1][0]} / N={rows[0][0]}: old {rows[-1][1] / rows[0][1]:.2f}, "
+              f"new {rows[-1][2] / rows[0][2]:.2f}")
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        demo.load_addon()
+        for n in args.counts:
+            r = measure(n, args, Path(tmp))
+            results.append(r)
+            v, f = r["view"], r["f12"]
+            print(f"N={n:5d} ({r['triangles']} triangles, bake {r['bake']:.1f} s)", flush=True)
+            print(f"  viewport {args.size}x{args.size}: first {v['first']:.1f} ms, still median "
+                  f"{v['median']:.1f} ms; still split ms: {fmt(v['split'])}", flush=True)
+            print(f"    first-frame split ms: {fmt(v['first_split'])}", flush=True)
+            if f is not None:
+                print(f"  F12 (1 GI iteration): median {f['median']:.1f} ms; split ms: "
+                      f"{fmt(f['split'])}, meshes read {f['meshes_read']}", flush=True)
+    lo, hi = results[0], results[-1]
+    f12 = [r for r in results if r["f12"] is not None]
+    print(f"ratio N={hi['n']} / N={lo['n']}: viewport still frame "
+          f"{hi['view']['median'] / lo['view']['median']:.2f}" + (
+              f", F12 N={f12[-1]['n']} / N={lo['n']} "
+              f"{f12[-1]['f12']['median'] / lo['f12']['median']:.2f}" if len(f12) > 1 else ""))
+    for key in ("extract", "sync", "gbuffer", "direct", "gi"):
+        a, b = lo["view"]["split"][key], hi["view"]["split"][key]
+        print(f"  viewport still {key:8s} {a:8.1f} -> {b:8.1f} ms")
+
+
+if __name__ == "__main__":
+    main()

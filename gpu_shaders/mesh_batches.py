@@ -1,0 +1,240 @@
+"""The G-buffer's geometry kept on the GPU between frames: one batch per unique mesh, instanced.
+
+A render engine instance's `MeshBatches` (SceneState.mesh_batches) holds, for every unique
+evaluated mesh + material set (operators.extract.ExtractionCache's keys), its corners in local
+space as gpu batches, one per (albedo texture, emission texture) pair (gbuffer.scene_triangles
+with an identity matrix), built when the key first appears or its MeshData was re-extracted, and
+freed when no instance shows it any more. The instances' world and normal matrices live in one
+RGBA32F texture (6 texels a row, rows grouped by mesh), re-uploaded only when a matrix, the set
+of instances or their order changed. The G-buffer is then one `draw_instanced` per batch
+(glsl/gbuffer_instanced.glsl reads row instance_base + gl_InstanceID): per-frame Python work is a
+loop over the unique meshes' batches, numpy over the instances, nothing over triangles.
+
+Instancing was chosen over one draw per instance with a matrix push constant: Blender 5.0's
+`GPUBatch.draw_instanced` with a texture lookup by gl_InstanceID works on llvmpipe, and it keeps
+the draw calls at the number of unique meshes (500 for the 1,000-object bench scene, not 1,000).
+Material textures are uploaded once per array and kept while a drawn mesh uses them.
+"""
+from __future__ import annotations
+
+import time
+
+import gpu
+import numpy as np
+from gpu_extras.batch import batch_for_shader
+
+from .gbuffer import ATTACHMENTS, scene_triangles, upload_texture
+from .resources import float_buffer, glsl
+
+TEXELS = 6                      # instance table texels per row
+_SHADER = {}
+
+
+def instanced_shader():
+    if "shader" not in _SHADER:
+        vert = glsl("gbuffer_instanced.glsl")
+        frag = glsl("gbuffer.glsl").split("//FRAGMENT")[1]
+        iface = gpu.types.GPUStageInterfaceInfo("lumen_gbuffer_inst_iface")
+        iface.smooth('VEC3', "v_pos")
+        iface.smooth('VEC3', "v_nor")
+        iface.smooth('VEC2', "v_uv")
+        iface.flat('VEC3', "v_albedo")
+        iface.flat('VEC3', "v_emit")
+        info = gpu.types.GPUShaderCreateInfo()
+        info.push_constant('MAT4', "view_proj")
+        info.push_constant('INT', "instance_base")
+        info.push_constant('INT', "use_albedo_tex")
+        info.push_constant('INT', "use_emit_tex")
+        info.push_constant('INT', "albedo_base_h")
+        info.push_constant('INT', "emit_base_h")
+        info.sampler(0, 'FLOAT_2D', "albedo_tex")
+        info.sampler(1, 'FLOAT_2D', "emit_tex")
+        info.sampler(2, 'FLOAT_2D', "instances")
+        for slot, (name, kind) in enumerate((("pos", 'VEC3'), ("nor", 'VEC3'), ("uv", 'VEC2'),
+                                             ("albedo", 'VEC3'), ("emit", 'VEC3'))):
+            info.vertex_in(slot, kind, name)
+        info.vertex_out(iface)
+        for slot, name in enumerate(ATTACHMENTS):
+            info.fragment_out(slot, 'VEC4', "out_" + name)
+        info.vertex_source(vert)
+        info.fragment_source(frag)
+        _SHADER["shader"] = gpu.shader.create_from_info(info)
+    return _SHADER["shader"]
+
+
+def drawable(matrices: np.ndarray, visible: np.ndarray) -> np.ndarray:
+    """bool [n]: camera-visible instances with an invertible, finite transform (packing.singular,
+    vectorised: Blender draws nothing of an object scaled to 0)."""
+    m = np.asarray(matrices, np.float64).reshape(-1, 4, 4)
+    ok = np.asarray(visible, bool) & np.isfinite(m).all(axis=(1, 2))
+    if ok.any():
+        s = np.linalg.svd(np.where(ok[:, None, None], m, np.eye(4))[:, :3, :3], compute_uv=False)
+        ok &= s.min(axis=1) > 1e-9 * np.maximum(s.max(axis=1), 1e-30)
+    return ok
+
+
+def table_rows(matrices: np.ndarray) -> np.ndarray:
+    """float32 [n, 6, 4]: each matrix's rows 0..2, then its normal matrix's rows (w = 0)."""
+    m = np.asarray(matrices, np.float64).reshape(-1, 4, 4)
+    out = np.zeros((len(m), TEXELS, 4), np.float32)
+    out[:, :3] = m[:, :3]
+    if len(m):
+        out[:, 3:, :3] = np.linalg.inv(m[:, :3, :3]).transpose(0, 2, 1)
+    return out
+
+
+class _Entry:
+    """A unique mesh on the GPU: its MeshData (identity says when it was re-extracted) and its
+    batches [(batch, albedo texture array or None, emission texture array or None)]."""
+
+    def __init__(self, data, groups, triangles):
+        self.data, self.groups, self.triangles = data, groups, triangles
+
+
+class MeshBatches:
+    def __init__(self):
+        self.entries = {}          # mesh key -> _Entry
+        self.textures = {}         # id(array) -> (array, (GPUTexture, base height))
+        self.table = None          # GPUTexture RGBA32F (6, rows)
+        self.rows = None           # float32 [rows, 6, 4] on the GPU
+        self.runs = []             # [(mesh key, first row, count)] in table order
+        self.built_total = 0       # batches built over the state's life (tests)
+        self.table_uploads = 0
+        self.last = {}             # the last update's counts
+
+    def stats(self) -> dict:
+        """GPU bytes: vertex buffers (14 floats a corner) and the instance table."""
+        corners = sum(e.triangles for e in self.entries.values()) * 3
+        out = {"gbuffer_meshes": corners * 14 * 4}
+        if self.rows is not None:
+            out["gbuffer_instances"] = max(len(self.rows), 1) * TEXELS * 16
+        return out
+
+    def update(self, keys: list, meshes: dict, matrices: np.ndarray, visible) -> dict:
+        """Sync with this frame's instances: `keys[i]` the mesh key of instance i, `meshes`
+        {key: MeshData}, `matrices` float64 [n, 4, 4], `visible` bool [n] (camera-visible).
+        Builds batches for new or re-extracted meshes, frees those no instance shows, and
+        re-uploads the instance table when it changed. Returns counts (built, table_uploaded)."""
+        n = len(keys)
+        mats = np.asarray(matrices, np.float64).reshape(n, 4, 4)
+        ok = drawable(mats, np.asarray(visible, bool).reshape(n))
+        index, ids = {}, np.empty(n, np.int64)
+        for i, key in enumerate(keys):                  # key -> small int: a loop over objects
+            ids[i] = index.setdefault(key, len(index))
+        order = np.flatnonzero(ok)
+        order = order[np.argsort(ids[order], kind="stable")]
+        run_ids, starts, counts = np.unique(ids[order], return_index=True, return_counts=True)
+        by_id = list(index)
+        runs = [(by_id[k], int(s), int(c)) for k, s, c in zip(run_ids, starts, counts)]
+        built = 0
+        for key, _, _ in runs:
+            data = meshes[key]
+            entry = self.entries.get(key)
+            if entry is None or entry.data is not data:
+                self.entries[key] = self._build(data)
+                built += 1
+        drawn = {key for key, _, _ in runs}
+        for key in [k for k in self.entries if k not in drawn]:
+            del self.entries[key]
+        rows = table_rows(mats[order])
+        uploaded = False
+        if self.rows is None or rows.shape != self.rows.shape or not np.array_equal(rows,
+                                                                                    self.rows):
+            data = rows if len(rows) else np.zeros((1, TEXELS, 4), np.float32)
+            self.table = gpu.types.GPUTexture((TEXELS, len(data)), format='RGBA32F',
+                                              data=float_buffer(data))
+            self.rows, uploaded = rows, True
+            self.table_uploads += 1
+        self.runs = runs
+        self.built_total += built
+        self.last = {"built": built, "table_uploaded": uploaded, "unique": len(runs),
+                     "instances": int(len(order))}
+        return self.last
+
+    def _build(self, data) -> _Entry:
+        from types import SimpleNamespace
+
+        local = SimpleNamespace(vertices=data.vertices, triangles=data.triangles,
+                                matrix_world=np.eye(4), normals=data.normals, uvs=data.uvs,
+                                material_ids=data.material_ids, materials=data.materials,
+                                camera_visible=True)
+        shader = instanced_shader()
+        groups, triangles = [], 0
+        for g in scene_triangles([local]):
+            if not len(g["pos"]):
+                continue
+            triangles += len(g["pos"]) // 3
+            batch = batch_for_shader(shader, 'TRIS', {name: g[name] for name in
+                                                      ("pos", "nor", "uv", "albedo", "emit")})
+            groups.append((batch, g["albedo_tex"], g["emit_tex"]))
+        return _Entry(data, groups, triangles)
+
+    def draw(self, view_proj, width: int, height: int) -> dict:
+        """The G-buffer of the synced instances for `view_proj`: gbuffer.render_gbuffer's
+        output ({'textures', 'depth_texture', counts, timings}); nothing is read back."""
+        import mathutils
+
+        t0 = time.perf_counter()
+        shader = instanced_shader()
+        used, uploaded, dummy = set(), 0, None
+
+        def gpu_texture(arr):
+            nonlocal uploaded
+            key = id(arr)
+            used.add(key)
+            hit = self.textures.get(key)
+            if hit is None or hit[0] is not arr:     # the array is kept alive: ids stay unique
+                self.textures[key] = hit = (arr, upload_texture(arr))
+                uploaded += 1
+            return hit[1]
+
+        textures = {name: gpu.types.GPUTexture((width, height), format='RGBA32F')
+                    for name in ATTACHMENTS}
+        depth = gpu.types.GPUTexture((width, height), format='DEPTH_COMPONENT32F')
+        fb = gpu.types.GPUFrameBuffer(depth_slot=depth,
+                                      color_slots=tuple(textures[n] for n in ATTACHMENTS))
+        t1 = time.perf_counter()
+        triangles = draws = 0
+        with fb.bind():
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+            gpu.state.depth_test_set('LESS_EQUAL')
+            gpu.state.depth_mask_set(True)
+            gpu.state.face_culling_set('NONE')
+            gpu.state.viewport_set(0, 0, width, height)
+            shader.bind()
+            shader.uniform_float("view_proj", mathutils.Matrix(
+                np.asarray(view_proj, np.float64).tolist()))
+            shader.uniform_sampler("instances", self.table)
+            bound = None                  # the textures bound: set again only when they change
+            for key, base, count in self.runs:
+                entry = self.entries[key]
+                triangles += entry.triangles * count
+                for batch, a_arr, e_arr in entry.groups:
+                    if (id(a_arr), id(e_arr)) != bound:
+                        if dummy is None and (a_arr is None or e_arr is None):
+                            dummy = gpu.types.GPUTexture(
+                                (1, 1), format='RGBA32F',
+                                data=gpu.types.Buffer('FLOAT', 4, [1.0] * 4))
+                        a_tex, a_h = gpu_texture(a_arr) if a_arr is not None else (dummy, 1)
+                        e_tex, e_h = gpu_texture(e_arr) if e_arr is not None else (dummy, 1)
+                        shader.uniform_int("use_albedo_tex", int(a_arr is not None))
+                        shader.uniform_int("use_emit_tex", int(e_arr is not None))
+                        shader.uniform_int("albedo_base_h", int(a_h))
+                        shader.uniform_int("emit_base_h", int(e_h))
+                        shader.uniform_sampler("albedo_tex", a_tex)
+                        shader.uniform_sampler("emit_tex", e_tex)
+                        bound = (id(a_arr), id(e_arr))
+                    shader.uniform_int("instance_base", base)
+                    batch.draw_instanced(shader, instance_start=0, instance_count=count)
+                    draws += 1
+            gpu.state.depth_test_set('NONE')
+            gpu.state.depth_mask_set(False)
+        for key in [k for k in self.textures if k not in used]:
+            del self.textures[key]
+        out = {"textures": textures, "depth_texture": depth, "triangles": triangles,
+               "draws": draws, "texture_uploads": uploaded, "textures_resident": len(self.textures),
+               "batches_built": self.last.get("built", 0),
+               "instance_table_uploaded": self.last.get("table_uploaded", False)}
+        out["draw_seconds"] = time.perf_counter() - t1
+        out["seconds"] = time.perf_counter() - t0
+        return out
