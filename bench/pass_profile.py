@@ -9,6 +9,10 @@ EEVEE renders the same camera at W x H with 1 render sample in the same process.
 
     .venv/bin/python bench/pass_profile.py [--viewport 640 360] [--redraws 4] [--pixel-size 1]
                                            [--quality MEDIUM] [--extra-objects N]
+    .venv/bin/python bench/pass_profile.py --f12 --scene thin [--size 128]
+
+With --f12, one F12 render of a bench/quality_scenes scene (or frame_time's) at --size, every
+setting at its default, timed the same way (no EEVEE run).
 """
 from __future__ import annotations
 
@@ -46,7 +50,12 @@ def main():
     ap.add_argument("--pixel-size", default="1", choices=("1", "2", "4", "8"))
     ap.add_argument("--quality", default="MEDIUM", choices=("LOW", "MEDIUM", "HIGH"))
     ap.add_argument("--extra-objects", type=int, default=0)
+    ap.add_argument("--f12", action="store_true", help="profile one F12 render instead")
+    ap.add_argument("--scene", default="", help="a bench/quality_scenes scene (default: frame_time's)")
+    ap.add_argument("--size", type=int, default=128, help="--f12: image side")
     args = ap.parse_args()
+    if args.f12:
+        return profile_f12(args)
 
     import bpy
     import gpu
@@ -122,6 +131,64 @@ def main():
             print(f"{k:40s} {ms:9.1f} {ms / max(total * 1000, 1e-9):7.1%}")
     print(f"view_draw (median) {ours * 1000:.1f} ms; EEVEE 1 sample at {width}x{height} "
           f"{ev * 1000:.1f} ms; ratio {ours / ev:.2f} (target: 0.5)")
+
+
+def timed_dispatches(timings: dict):
+    """Patch gpu.compute.dispatch to add each dispatch's seconds to timings[shader name]; returns
+    the function that undoes it."""
+    import gpu
+
+    real, names = gpu.compute.dispatch, {}
+
+    def timed(sh, *groups):
+        t = time.perf_counter()
+        real(sh, *groups)
+        key = names.get(id(sh))
+        if key is None:
+            names.update(shader_names())
+            key = names.get(id(sh), "?")
+        timings[key] += time.perf_counter() - t
+
+    gpu.compute.dispatch = timed
+    return lambda: setattr(gpu.compute, "dispatch", real)
+
+
+def profile_f12(args):
+    import bpy
+    import demo
+    import frame_time
+    import quality_scenes
+
+    addon = demo.load_addon()
+    engine = addon.gpu_shaders.engine
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.scene:
+            scene = getattr(quality_scenes, "build_" + args.scene)()
+        else:
+            scene = frame_time.build_scene(Path(tmp), args.size, args.extra_objects)
+        scene.render.resolution_x = scene.render.resolution_y = args.size
+        scene.render.resolution_percentage = 100
+        scene.lumen.bake.cache_dir = tmp
+        if bpy.ops.lumen.bake() != {'FINISHED'}:
+            raise SystemExit("bake failed")
+        scene.render.engine = "LUMEN_GI"
+        bpy.ops.render.render()                       # warm-up: shader compilation
+        timings = defaultdict(float)
+        undo = timed_dispatches(timings)
+        t = time.perf_counter()
+        try:
+            bpy.ops.render.render()
+        finally:
+            undo()
+        total = time.perf_counter() - t
+    R = engine.LAST_RENDER
+    print(f"F12 {args.size}x{args.size} of {args.scene or 'frame_time'}: {total * 1000:.0f} ms, "
+          f"{R.get('gi_iterations')} GI iterations, surface-cache tiles relit "
+          f"{R.get('gi_sc_tiles')}; GI timings (ms): "
+          f"{ {k: round(v * 1000) for k, v in R.get('gi_timings', {}).items()} }")
+    for k, v in sorted(timings.items(), key=lambda kv: -kv[1]):
+        if v * 1000 >= 0.05:
+            print(f"{k:40s} {v * 1000:9.1f} {v / total:7.1%}")
 
 
 if __name__ == "__main__":
