@@ -13,6 +13,10 @@ F12 render accumulates:
 `voxel_lighting` (on unless a settings object says otherwise): a global-SDF hit is searched among
 its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, it is searched on
 every mesh SDF and reads the surface cache, whose cost grows with the number of objects.
+`radiance_cache` (off unless a settings object says otherwise: the scene's `radiance_cache`):
+screen-probe rays trace ~2 m and take the far field from the world radiance cache
+(radiance_cache.py; rc_spacing, rc_budget probes traced per frame, rc_capacity slots); an F12
+render traces every probe its first gathered frame needs, then rc_budget per frame.
 """
 from __future__ import annotations
 
@@ -40,6 +44,10 @@ class GISettings:
     gather: str = "PROBES"         # PROBES (screen probes) or PIXEL (reference: rays per pixel)
     pixel_rays: int = 64           # PIXEL: cosine rays per pixel per frame
     voxel_lighting: bool = True    # far (global-SDF) hits read voxel lighting
+    radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
+    rc_spacing: float = 0.577      # radiance cache level-0 probe spacing (m): 2 m screen rays
+    rc_budget: int = 64            # radiance cache probes traced per frame (new first)
+    rc_capacity: int = 2048        # radiance cache probe slots
 
     @property
     def enabled(self) -> bool:
@@ -76,4 +84,6 @@ def from_scene(scene_settings, viewport: bool = False) -> GISettings:
     return settings(q, bounces=int(getattr(scene_settings, "bounces", 3)),
                     render_frames=int(getattr(scene_settings, "render_frames", 8)),
                     gather=str(getattr(scene_settings, "gi_gather", "PROBES")),
-                    voxel_lighting=bool(getattr(scene_settings, "voxel_lighting", True)), **extra)
+                    voxel_lighting=bool(getattr(scene_settings, "voxel_lighting", True)),
+                    radiance_cache=bool(getattr(scene_settings, "radiance_cache", False)),
+                    **extra)

@@ -4,7 +4,9 @@ gather of indirect light for every pixel, from few probes.
 Per frame, one GLSL pass each:
     screen_probe_place      one probe per tile x tile pixels on a jittered G-buffer pixel
     screen_probe_trace      res x res octahedral rays per probe (whole sphere, world directions,
-                            jittered per frame) through gi_trace_lib: surface cache at hits, sky
+                            jittered per frame) through gi_trace_lib: surface cache at hits, sky;
+                            with the world radiance cache (radiance_cache.py) rays trace ~2 m,
+                            then the cache's update and resolve passes give the far field
     screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
                             hit-distance clamp
     screen_probe_sh         9 SH coefficients per probe (exact texel solid angles)
@@ -18,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import compute, voxel_lighting
+from . import compute, radiance_cache, voxel_lighting
 from .probe_math import hammersley
 
 GI_LIBS = (("sampling_lib.glsl", "octahedral_lib.glsl") + voxel_lighting.LIBS
@@ -44,10 +46,11 @@ class ScreenProbes:
         return tile, ray
 
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
-               voxels=None):
+               voxels=None, rcache=None, rc_budget: int = 0):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
         0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
-        (None: refined on the mesh SDFs)."""
+        (None: refined on the mesh SDFs). rcache: radiance_cache.RadianceCache (None: off): rays
+        trace ~2 m and take the far field from it, `rc_budget` cache probes traced."""
         gw, gh = self.grid
         r = self.res
         tile_j, ray_j = self.jitter(frame)
@@ -69,8 +72,11 @@ class ScreenProbes:
 
         tex["radiance"] = compute.texture((gw * r, gh * r))
         sh = compute.shader("screen_probe_trace", samplers=("probe_info", "probe_normal") + VL,
-                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max')),
-                            libs=GI_LIBS, scene=True, surface_cache=True, global_sdf=True)
+                            images=("out_image", ("rc_marks", 'R32F')),
+                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max'),
+                                  radiance_cache.CAMERA, ('INT', 'rc_frame')),
+                            libs=GI_LIBS + radiance_cache.LAYOUT, scene=True, surface_cache=True,
+                            global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
@@ -81,8 +87,15 @@ class ScreenProbes:
         sh.uniform_int("probe_res", r)
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.uniform_float("t_max", float(t_max))
+        if rcache is not None:
+            rcache.bind_trace(sh, cam_pos, frame)
+        else:
+            marks = radiance_cache.bind_off(sh)  # noqa: F841 (held until the dispatch)
         sh.image("out_image", tex["radiance"])
         compute.dispatch(sh, gw * r, gh * r)
+        if rcache is not None:    # the far field of the rays that met nothing within ~2 m
+            rcache.update(resources, gsdf, cache, sky, voxels, cam_pos, frame, t_max, rc_budget)
+            rcache.resolve(resources, gsdf, cache, sky, voxels, tex, r, ray_j, cam_pos, t_max)
 
         tex["filtered"] = compute.texture((gw * r, gh * r))
         sh = compute.shader("screen_probe_filter",
