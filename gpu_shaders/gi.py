@@ -138,12 +138,14 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 new = pixel_gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max,
                                    gi.pixel_rays, width, height, voxels)
             else:
-                # F12: the first gathered frame traces every cache probe it needs
-                budget = gi.rc_budget
-                if final and not gathered and rcache is not None:
-                    budget = rcache.capacity
+                # F12: every cache probe traced every gathered frame, texels a running mean
+                # (as the screen probes' own rays are: the same image quality); viewport: the
+                # budget, new probes first, exponential
+                budget, blend, retrace = gi.rc_budget, 0.25, gi.rc_retrace
+                if final and rcache is not None:
+                    budget, blend, retrace = rcache.capacity, 1.0 / (gathered + 1), None
                 new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels,
-                                    rcache, budget)
+                                    rcache, budget, blend, retrace)
                 gathered += 1
             result = probes.temporal(new, px_blend)
         timings["gsdf"] += b - a

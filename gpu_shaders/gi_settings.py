@@ -15,8 +15,9 @@ its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, 
 every mesh SDF and reads the surface cache, whose cost grows with the number of objects.
 `radiance_cache` (off unless a settings object says otherwise: the scene's `radiance_cache`):
 screen-probe rays trace ~2 m and take the far field from the world radiance cache
-(radiance_cache.py; rc_spacing, rc_budget probes traced per frame, rc_capacity slots); an F12
-render traces every probe its first gathered frame needs, then rc_budget per frame.
+(radiance_cache.py; rc_spacing, rc_budget probes traced per viewport frame, new first, of
+them at most rc_retrace re-traced, rc_capacity slots); an F12 render traces every probe it
+needs on every gathered frame.
 """
 from __future__ import annotations
 
@@ -46,7 +47,8 @@ class GISettings:
     voxel_lighting: bool = True    # far (global-SDF) hits read voxel lighting
     radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
     rc_spacing: float = 0.577      # radiance cache level-0 probe spacing (m): 2 m screen rays
-    rc_budget: int = 64            # radiance cache probes traced per frame (new first)
+    rc_budget: int = 16            # radiance cache probes traced per viewport frame (new first)
+    rc_retrace: int = 8            # of them, at most this many re-traced (least recent first)
     rc_capacity: int = 2048        # radiance cache probe slots
 
     @property

@@ -10,8 +10,9 @@ slots (2048) of RES x RES = 8 x 8 octahedral texels (RGBA32F atlas: radiance, ne
 Against the lecture's 4 x 48^3 at ~1 m and 32 x 32 texels: fewer cells per level (a 32^3 level
 costs a quarter of the per-cell allocation pass of 48^3, and our scenes are rooms, not 50 m
 levels) and 8 x 8 texels, the screen probes' own resolution: a screen probe reduces what it
-gathers to 9 SH coefficients, and 1024 rays per probe are not affordable on llvmpipe; each
-texel instead averages 2 x 2 stratified rays per trace and blends re-traces (RC_BLEND 0.25).
+gathers to 9 SH coefficients, and 1024 rays per probe are not affordable on llvmpipe; a texel
+takes one jittered ray per trace and blends re-traces (F12: a running mean over the gathered
+frames; viewport: exponential, 0.25).
 
 Per frame (screen_probes.gather, between its trace and filter passes):
     screen_probe_trace       rays trace rc_trace_distance = 2 sqrt(3) s_k (the interpolation
@@ -21,14 +22,17 @@ Per frame (screen_probes.gather, between its trace and filter passes):
     radiance_cache_free      per slot: probes unused for `keep` frames, outside their clipmap or
                              (scene change) all are freed; every free slot is listed
     radiance_cache_alloc     per cell: a marked cell without a probe takes a free slot
-    radiance_cache_select    the trace list under the budget: new probes first, then the
-                             traced ones in a round-robin window (the least recently traced)
+    radiance_cache_select    the trace list under the budget: new probes first, then at most
+                             `retrace` traced ones in a round-robin window (the least
+                             recently traced; the lecture's re-trace of a subset)
     radiance_cache_trace     per listed probe and texel: full-length rays from the probe centre
                              through gi_trace_lib (global SDF / voxel lighting / sky)
     radiance_cache_resolve   per flagged screen-probe texel: rc_lookup (8 probes, trilinear,
                              sphere parallax, visibility: a probe whose rays meet a surface before
                              the parallax point X is left out, so a probe behind a thin wall or in
                              a solid brings no light); none left: the ray traces on to t_max
+    screen_probe_integrate   the pixels no screen probe serves gather 16 rays themselves: the same
+                             short trace + cache (rc_radiance), marking cells for the next frame
 The counts live on the GPU (R32I counters, atomics): nothing is read back in the frame loop;
 `traced_count()` / `read()` are for tests. Needs a GPU context.
 """
@@ -41,7 +45,8 @@ from . import compute, voxel_lighting
 LEVELS, N, RES, SLOT_W = 4, 32, 8, 64          # radiance_cache_layout_lib.glsl's RC_*
 RADIUS = 3.0 ** 0.5                              # RC_RADIUS, in spacings
 LAYOUT = ("octahedral_lib.glsl", "radiance_cache_layout_lib.glsl")
-LOOKUP = LAYOUT + ("radiance_cache_lib.glsl",)
+LOOKUP = LAYOUT + ("radiance_cache_lib.glsl",)   # after gi_trace_lib.glsl for rc_radiance
+MARK = LAYOUT + ("radiance_cache_mark_lib.glsl",)
 SAMPLERS = ("rc_cells", "rc_slots", "rc_state", "rc_atlas")
 GI_LIBS = ("sampling_lib.glsl",) + voxel_lighting.LIBS + ("gi_trace_lib.glsl",)
 CAMERA = ('VEC4', 'rc_camera')
@@ -82,12 +87,15 @@ class RadianceCache:
         sh.image("rc_marks", self.marks)
 
     def update(self, resources, gsdf, cache, sky, voxels, cam_pos, frame: int, t_max: float,
-               budget: int):
+               budget: int, blend: float = 0.25, retrace: int | None = None):
         """Free, allocate, select and trace this frame's probes (after screen_probe_trace marked
-        the cells): at most `budget` probes traced, new ones first."""
+        the cells): at most `budget` probes traced, new ones first, then at most `retrace`
+        (default: budget) traced ones, the least recently traced; a re-traced probe's texels
+        become mix(old, new, blend)."""
         cam = self.camera_vec(cam_pos)
         frame = int(frame)
         budget = max(0, min(int(budget), self.capacity))
+        window = budget if retrace is None else max(0, min(int(retrace), budget))
         rows = self.capacity // SLOT_W
         self.counter.clear(format='INT', value=(0,))
         self.list.clear(format='FLOAT', value=(-1.0, 0.0, 0.0, 0.0))
@@ -131,17 +139,19 @@ class RadianceCache:
                             images=(("rc_list_out", 'RGBA32F'),
                                     ("rc_counter", 'R32I', {'READ', 'WRITE'})),
                             push=(('INT', 'rc_phase'), ('INT', 'rc_cap'), ('INT', 'rc_cursor'),
-                                  CAMERA), libs=LAYOUT)   # (the layout lib names rc_camera)
+                                  ('INT', 'rc_window'), CAMERA),
+                            libs=LAYOUT)   # (the layout lib names rc_camera)
         for phase in (0, 1):
             sh.uniform_sampler("rc_slots", self.slots)
             sh.uniform_sampler("rc_state", self.state)
             sh.uniform_int("rc_phase", phase)
             sh.uniform_int("rc_cap", budget)
             sh.uniform_int("rc_cursor", self.cursor)
+            sh.uniform_int("rc_window", window)
             sh.image("rc_list_out", self.list)
             sh.image("rc_counter", self.counter)
             compute.dispatch(sh, SLOT_W, rows)
-        self.cursor = (self.cursor + budget) % self.capacity
+        self.cursor = (self.cursor + window) % self.capacity
 
         if budget:
             sh = compute.shader("radiance_cache_trace", samplers=("rc_list", "rc_slots")
@@ -149,7 +159,7 @@ class RadianceCache:
                                 images=(("rc_atlas_io", 'RGBA32F', {'READ', 'WRITE'}),
                                         ("rc_state_io", 'RGBA32F', {'READ', 'WRITE'})),
                                 push=(CAMERA, ('INT', 'rc_frame'), ('VEC2', 'rc_jitter'),
-                                      ('FLOAT', 't_max')),
+                                      ('FLOAT', 't_max'), ('FLOAT', 'rc_blend')),
                                 libs=LAYOUT + GI_LIBS, scene=True, surface_cache=True,
                                 global_sdf=True)
             resources.bind(sh)
@@ -164,6 +174,7 @@ class RadianceCache:
             sh.uniform_int("rc_frame", frame)
             sh.uniform_float("rc_jitter", [float(v) for v in rng.random(2)])
             sh.uniform_float("t_max", float(t_max))
+            sh.uniform_float("rc_blend", float(blend))
             sh.image("rc_atlas_io", self.atlas)
             sh.image("rc_state_io", self.state)
             compute.dispatch(sh, SLOT_W * RES, -(-budget // SLOT_W) * RES)
@@ -185,7 +196,7 @@ class RadianceCache:
                             images=(("probe_radiance_io", 'RGBA32F', {'READ', 'WRITE'}),),
                             push=(CAMERA, ('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
                                   ('FLOAT', 't_max')),
-                            libs=LOOKUP + GI_LIBS, scene=True, surface_cache=True,
+                            libs=GI_LIBS + LOOKUP, scene=True, surface_cache=True,
                             global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
@@ -240,6 +251,23 @@ class RadianceCache:
                 "radiance_cache_slots": size(self.slots, 16) + size(self.state, 16)
                 + size(self.list, 16) + size(self.free, 4) + 16,
                 "radiance_cache_atlas": size(self.atlas, 16)}
+
+
+def bind_lookup(sh, rcache, cam_pos):
+    """A pass that reads the cache (radiance_cache_lib.glsl) and marks cells (image rc_marks):
+    `rcache`'s textures, or with None 1x1 placeholders and rc_camera.w = 0 (off). Returns what
+    the caller holds until the dispatch."""
+    if rcache is not None:
+        rcache.bind(sh)
+        sh.uniform_float("rc_camera", rcache.camera_vec(cam_pos))
+        sh.image("rc_marks", rcache.marks)
+        return None
+    tex = compute.texture((1, 1), 'R32F')
+    for name in SAMPLERS:
+        sh.uniform_sampler(name, tex)
+    sh.uniform_float("rc_camera", [0.0, 0.0, 0.0, 0.0])
+    sh.image("rc_marks", tex)
+    return tex
 
 
 def bind_off(sh):

@@ -46,11 +46,13 @@ class ScreenProbes:
         return tile, ray
 
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
-               voxels=None, rcache=None, rc_budget: int = 0):
+               voxels=None, rcache=None, rc_budget: int = 0, rc_blend: float = 0.25,
+               rc_retrace=None):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
         0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
         (None: refined on the mesh SDFs). rcache: radiance_cache.RadianceCache (None: off): rays
-        trace ~2 m and take the far field from it, `rc_budget` cache probes traced."""
+        trace ~2 m and take the far field from it, `rc_budget` cache probes traced (new first),
+        of them at most `rc_retrace` re-traced."""
         gw, gh = self.grid
         r = self.res
         tile_j, ray_j = self.jitter(frame)
@@ -75,7 +77,7 @@ class ScreenProbes:
                             images=("out_image", ("rc_marks", 'R32F')),
                             push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max'),
                                   radiance_cache.CAMERA, ('INT', 'rc_frame')),
-                            libs=GI_LIBS + radiance_cache.LAYOUT, scene=True, surface_cache=True,
+                            libs=GI_LIBS + radiance_cache.MARK, scene=True, surface_cache=True,
                             global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
@@ -94,7 +96,8 @@ class ScreenProbes:
         sh.image("out_image", tex["radiance"])
         compute.dispatch(sh, gw * r, gh * r)
         if rcache is not None:    # the far field of the rays that met nothing within ~2 m
-            rcache.update(resources, gsdf, cache, sky, voxels, cam_pos, frame, t_max, rc_budget)
+            rcache.update(resources, gsdf, cache, sky, voxels, cam_pos, frame, t_max, rc_budget,
+                          rc_blend, rc_retrace)
             rcache.resolve(resources, gsdf, cache, sky, voxels, tex, r, ray_j, cam_pos, t_max)
 
         tex["filtered"] = compute.texture((gw * r, gh * r))
@@ -125,11 +128,12 @@ class ScreenProbes:
         tex["integrated"] = compute.texture((self.width, self.height))
         sh = compute.shader("screen_probe_integrate",
                             samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
-                                      "probe_sh") + VL,
+                                      "probe_sh") + VL + radiance_cache.SAMPLERS,
+                            images=("out_image", ("rc_marks", 'R32F')),
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
-                                  ('FLOAT', 't_max')),
+                                  ('FLOAT', 't_max'), radiance_cache.CAMERA),
                             libs=("gbuffer_lib.glsl", "sh_lib.glsl", "probe_interp_lib.glsl")
-                            + GI_LIBS,
+                            + GI_LIBS + radiance_cache.LOOKUP + radiance_cache.MARK,
                             scene=True, surface_cache=True, global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
@@ -145,6 +149,7 @@ class ScreenProbes:
         sh.uniform_sampler("probe_sh", tex["sh"])
         sh.uniform_float("cam_pos", compute.vec(cam_pos))
         sh.uniform_int("probe_tile", self.tile)
+        rc_held = radiance_cache.bind_lookup(sh, rcache, cam_pos)  # noqa: F841 (dispatch)
         sh.image("out_image", tex["integrated"])
         compute.dispatch(sh, self.width, self.height)
         return tex["integrated"]

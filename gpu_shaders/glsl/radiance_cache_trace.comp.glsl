@@ -1,12 +1,12 @@
 /* Radiance cache, tracing: per listed probe and octahedral texel, RC_SUB^2 stratified rays
- * (rotated every trace by rc_jitter) from the probe's centre, full length (t_max) through
- * gi_trace_lib.glsl (mesh SDFs, global SDF, voxel lighting / surface cache, sky on a miss).
- * Atlas texel: rgb the rays' mean radiance (a new probe replaces, a re-trace blends by
- * RC_BLEND), a the nearest hit of any of its rays so far (the lookup's visibility test).
+ * (jittered in the texel by rc_jitter, a new offset every trace) from the probe's centre, full
+ * length (t_max) through gi_trace_lib.glsl (mesh SDFs, global SDF, voxel lighting / surface
+ * cache, sky on a miss). Atlas texel: rgb the rays' mean radiance (a new probe replaces, a
+ * re-trace blends by rc_blend: a running mean in F12, exponential in the viewport), a the
+ * nearest hit of any of its rays so far (the lookup's visibility test).
  * Texel (0, 0) stamps rc_state_io.x = frame + 1 (traced). Samplers rc_list, rc_slots.
  */
-#define RC_SUB 2
-#define RC_BLEND 0.25
+#define RC_SUB 1
 
 void main()
 {
@@ -38,7 +38,7 @@ void main()
   ivec2 at = st * RC_RES + texel;
   if (e.y < 0.5) {
     vec4 old = imageLoad(rc_atlas_io, at);
-    L = mix(old.rgb, L, RC_BLEND);
+    L = mix(old.rgb, L, rc_blend);
     nearest = min(nearest, old.a);
   }
   imageStore(rc_atlas_io, at, vec4(L, nearest));

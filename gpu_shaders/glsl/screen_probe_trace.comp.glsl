@@ -12,16 +12,6 @@
  * Output out_image (probe atlas, probe (i, j) at texels [i*res, (i+1)*res) x [j*res, ...)):
  * radiance rgb, a = hit distance (t_max on a miss, -1 where there is no probe, -2 to resolve).
  */
-/* Marks the 8 cache cells whose probes interpolate at p (level k) as used on this frame. */
-void rc_mark(vec3 p, int k, int frame)
-{
-  ivec3 i0 = ivec3(floor(p / rc_spacing(k) - 0.5));
-  for (int c = 0; c < 8; c++) {
-    ivec3 cell = i0 + ivec3(c & 1, (c >> 1) & 1, c >> 2);
-    imageStore(rc_marks, rc_cell_texel(k, cell), vec4(float(frame + 1)));
-  }
-}
-
 void main()
 {
   ivec2 tx = ivec2(gl_GlobalInvocationID.xy);

@@ -14,7 +14,7 @@ wrapped to read the cache back after every GI call (tests only: read-backs).
   probes outside the walls exist and see the sky, yet the inside's indirect light stays under
   1% of the sky (no leak), as without the cache.
 - The budget: 8 view_draw redraws of a still camera (tools/viewport_harness.py) trace exactly
-  rc_budget probes per frame, new probes first (the screen probes' jittered placement keeps
+  rc_budget probes per frame, new probes first, at most rc_retrace (8) old ones (the screen probes' jittered placement keeps
   adding cells over the first 16 frames, so new ones keep coming here).
 """
 import sys
@@ -312,4 +312,5 @@ def test_budget_new_probes_first_then_the_oldest(tmp_path):
         assert cur["now"] == cur["traced"]                 # (stamped by the trace pass)
         waiting = cur["never"] + cur["fresh"]              # new probes before this frame's trace
         assert cur["fresh"] == min(12, waiting)            # new probes first
+        assert cur["traced"] - cur["fresh"] <= 8           # then at most rc_retrace old ones
     assert log[0]["never"] == log[0]["used"] - 12
