@@ -2,7 +2,8 @@
 
     .venv/bin/python bench/quality.py [--size 256] [--scenes cornell,window,thin]
         [--cycles-samples 1024] [--engines cycles_ref,cycles_4spp_oidn,eevee,eevee_rt,
-        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm] [--out out/quality] [--quick] [--verbose]
+        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_rc] [--out out/quality] [--quick]
+        [--verbose]
 
 Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornell` (area light
 in a Cornell box), `window` (a closed room lit by a sun through one window), `thin` (a closed
@@ -27,6 +28,7 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
     lumen_high        the same with gi_quality='HIGH', render_frames=16, bounces=3
     lumen_ssgi        GI Method SSGI (screen-space GI on an HZB, lecture 21), Medium, 8 frames
     lumen_rsm         GI Method RSM (reflective shadow maps, one bounce), Medium, 8 frames
+    lumen_rc          lumen with the world radiance cache on (gpu_shaders/radiance_cache.py)
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -66,7 +68,7 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 import quality_scenes  # noqa: E402
 
 ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
-           "lumen_high", "lumen_ssgi", "lumen_rsm")
+           "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_rc")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -523,11 +525,27 @@ def hidden_drawn(scene, position, share=0.02):
     return "; ".join(notes)
 
 
+def run_lumen_rc(ctx):
+    """lumen with the world radiance cache on (GISettings.radiance_cache: the scene has no
+    property for it yet, so gi_settings.from_scene is patched for this render)."""
+    import dataclasses
+
+    from lumen_gi.gpu_shaders import gi_settings
+
+    original = gi_settings.from_scene
+    gi_settings.from_scene = lambda s, viewport=False: dataclasses.replace(
+        original(s, viewport), radiance_cache=True)
+    try:
+        return run_lumen(ctx)
+    finally:
+        gi_settings.from_scene = original
+
+
 RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "eevee": run_eevee,
            "eevee_rt": run_eevee_rt, "eevee_volume": run_eevee_volume, "lumen": run_lumen,
            "lumen_high": run_lumen_high,
            "lumen_ssgi": lambda ctx: run_lumen(ctx, LUMEN_SSGI_SETTINGS),
-           "lumen_rsm": lambda ctx: run_lumen(ctx, LUMEN_RSM_SETTINGS)}
+           "lumen_rsm": lambda ctx: run_lumen(ctx, LUMEN_RSM_SETTINGS), "lumen_rc": run_lumen_rc}
 
 
 # Metrics and images ----------------------------------------------------------------------------

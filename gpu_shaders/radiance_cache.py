@@ -229,19 +229,24 @@ class RadianceCache:
                 "atlas": atlas.transpose(0, 2, 1, 3, 4).reshape(-1, RES, RES, 4),
                 "cells": compute.read(self.cells)[..., 0].reshape(LEVELS, N, N, N)}
 
-    def view(self, width: int, height: int) -> np.ndarray:
-        """The RADIANCE_CACHE debug view: the probe atlas (one 8 x 8 tile per slot, in use
-        rows only), alpha-scaled to the image; free slots black."""
-        data = self.read()
-        used = data["slots"][:, 3] > 0
-        rows = max(int(np.ceil((np.flatnonzero(used).max() + 1) / SLOT_W)) if used.any() else 1, 1)
-        atlas = compute.read(self.atlas)[: rows * RES].copy()
-        atlas[..., 3] = 1.0
-        mask = np.repeat(np.repeat(used.reshape(-1, SLOT_W)[:rows], RES, 0), RES, 1)
-        atlas[~mask, :3] = 0.0
-        ys = np.minimum((np.arange(height) * atlas.shape[0]) // height, atlas.shape[0] - 1)
-        xs = np.minimum((np.arange(width) * atlas.shape[1]) // width, atlas.shape[1] - 1)
-        return atlas[ys][:, xs].copy()
+    def view(self, gbuf: dict, cam_pos, width: int, height: int) -> np.ndarray:
+        """glsl/radiance_cache_view.comp.glsl (the RADIANCE_CACHE debug view): float32 [h, w, 4],
+        per pixel what the cache gives a ray along the surface normal (w = level + 1; magenta,
+        w = 0: no traced probe serves it; background w = -1)."""
+        g = gbuf["textures"]
+        sh = compute.shader("radiance_cache_view",
+                            samplers=("gbuf_position", "gbuf_normal") + SAMPLERS,
+                            push=(('VEC3', 'cam_pos'), CAMERA),
+                            libs=("gbuffer_lib.glsl",) + LOOKUP)
+        self.bind(sh)
+        sh.uniform_sampler("gbuf_position", g["position"])
+        sh.uniform_sampler("gbuf_normal", g["normal"])
+        sh.uniform_float("cam_pos", compute.vec(cam_pos))
+        sh.uniform_float("rc_camera", self.camera_vec(cam_pos))
+        out = compute.texture((width, height))
+        sh.image("out_image", out)
+        compute.dispatch(sh, width, height)
+        return compute.read(out)
 
     def stats(self) -> dict:
         """GPU bytes: the indirection and marks (R32F), slot tables, atlas (RGBA32F)."""

@@ -101,7 +101,10 @@ class LumenSceneSettings(bpy.types.PropertyGroup):
                 "pixel's plane, red: fallback (no probe on that plane)"),
                ('VOXEL_LIGHTING', "Voxel Lighting", "What a far (global SDF) ray hit reads from "
                 "the voxel lighting, along the camera ray (magenta: no voxel face serves it; such "
-                "hits read the surface cache)")),
+                "hits read the surface cache)"),
+               ('RADIANCE_CACHE', "Radiance Cache", "What the world radiance cache gives a ray "
+                "leaving each surface along its normal (magenta: no traced probe serves it; with "
+                "the cache off, Combined)")),
         default='COMBINED')
     gi_quality: EnumProperty(
         name="Render Quality", description="Budgets of the global illumination passes in F12 "

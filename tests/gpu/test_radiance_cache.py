@@ -106,6 +106,9 @@ R = finish(48, frames=4, bounces=2)
 np.save("combined.npy", R["combined"])
 np.save("position.npy", R["position"])
 used, traced = save_last("furnace")
+scene.lumen.debug_view = "RADIANCE_CACHE"
+R = finish(48, frames=1, bounces=1)
+np.save("view.npy", R["shown"])
 emit(used=used, traced=traced, per_frame=[r["traced"] for r in READS],
      served=READS[-1]["served"],
      bytes={k: v for k, v in R["gpu_bytes"].items() if k.startswith("radiance")})
@@ -130,6 +133,11 @@ def test_uniform_sky_probe_texels_and_furnace(tmp_path):
     print(lum[hit].mean(), np.percentile(lum[hit], [1, 5, 50, 95, 99]))
     assert abs(lum[hit].mean() - 0.8) <= 0.02 * 0.8
     assert (np.abs(lum[hit] - 0.8) <= 0.05 * 0.8).mean() >= 0.95
+    view = np.load(tmp_path / "view.npy")                  # the RADIANCE_CACHE debug view
+    served = hit & (view[..., 1] == 1.0)                    # (magenta: no probe, green 0)
+    print("view served", served.sum() / hit.sum())
+    assert served.sum() >= 0.5 * hit.sum()
+    np.testing.assert_array_equal(view[served][:, :3], 1.0)     # the sky's L, exactly
 
 
 def texel_dirs():
