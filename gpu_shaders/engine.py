@@ -401,7 +401,7 @@ def _debug_image(view, state, gbuf, images, cam_pos, width, height, gi_cfg):
         shown = state.voxel_lighting.view(state.global_sdf, gbuf, cam_pos, width, height)
         shown[shown[..., 3] < 0] = 0.0
     elif view == "RADIANCE_CACHE" and getattr(state, "radiance_cache", None) is not None:
-        shown = state.radiance_cache.view(gbuf, cam_pos, width, height)
+        shown = state.radiance_cache.view(gbuf, state.sky, cam_pos, width, height)
         shown[shown[..., 3] < 0] = 0.0
     else:
         shown = {"DIRECT": images["direct"], "INDIRECT": images["indirect"],

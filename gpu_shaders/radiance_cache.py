@@ -6,7 +6,9 @@ Layout (glsl/radiance_cache_layout_lib.glsl): LEVELS = 4 clipmaps of N^3 = 32^3 
 camera, level-0 spacing s0 = `GISettings.rc_spacing` (0.577 m: the screen rays' 2 m is
 2 sqrt(3) s0, see below; level k: s0 2^k, so level 0 spans 18.5 m and level 3 148 m), one
 possible probe per cell centre; an indirection (cells: cell -> slot + 1) into `capacity` probe
-slots (2048) of RES x RES = 8 x 8 octahedral texels (RGBA32F atlas: radiance, nearest hit).
+slots (2048) of RES x RES = 8 x 8 octahedral texels (RGBA32F atlas: the hits' radiance, nearest
+hit; R32F: the share of rays that left the scene, whose sky the lookup reads in the screen ray's
+own direction).
 Against the lecture's 4 x 48^3 at ~1 m and 32 x 32 texels: fewer cells per level (a 32^3 level
 costs a quarter of the per-cell allocation pass of 48^3, and our scenes are rooms, not 50 m
 levels) and 8 x 8 texels, the screen probes' own resolution: a screen probe reduces what it
@@ -47,7 +49,7 @@ RADIUS = 3.0 ** 0.5                              # RC_RADIUS, in spacings
 LAYOUT = ("octahedral_lib.glsl", "radiance_cache_layout_lib.glsl")
 LOOKUP = LAYOUT + ("radiance_cache_lib.glsl",)   # after gi_trace_lib.glsl for rc_radiance
 MARK = LAYOUT + ("radiance_cache_mark_lib.glsl",)
-SAMPLERS = ("rc_cells", "rc_slots", "rc_state", "rc_atlas")
+SAMPLERS = ("rc_cells", "rc_slots", "rc_state", "rc_atlas", "rc_miss")
 GI_LIBS = ("sampling_lib.glsl",) + voxel_lighting.LIBS + ("gi_trace_lib.glsl",)
 CAMERA = ('VEC4', 'rc_camera')
 
@@ -72,6 +74,7 @@ class RadianceCache:
         self.list = compute.texture((SLOT_W, rows))
         self.counter = compute.texture((4, 1), 'R32I')
         self.atlas = compute.texture((SLOT_W * RES, rows * RES))
+        self.miss = compute.texture((SLOT_W * RES, rows * RES), 'R32F')   # sky share per texel
         self.cursor = 0
         self.reset = True          # free every probe on the next update (scene changed)
         self.camera = None         # rc_camera of the last update
@@ -157,7 +160,8 @@ class RadianceCache:
             sh = compute.shader("radiance_cache_trace", samplers=("rc_list", "rc_slots")
                                 + voxel_lighting.SAMPLERS,
                                 images=(("rc_atlas_io", 'RGBA32F', {'READ', 'WRITE'}),
-                                        ("rc_state_io", 'RGBA32F', {'READ', 'WRITE'})),
+                                        ("rc_state_io", 'RGBA32F', {'READ', 'WRITE'}),
+                                        ("rc_miss_io", 'R32F', {'READ', 'WRITE'})),
                                 push=(CAMERA, ('INT', 'rc_frame'), ('VEC2', 'rc_jitter'),
                                       ('FLOAT', 't_max'), ('FLOAT', 'rc_blend')),
                                 libs=LAYOUT + GI_LIBS, scene=True, surface_cache=True,
@@ -177,13 +181,15 @@ class RadianceCache:
             sh.uniform_float("rc_blend", float(blend))
             sh.image("rc_atlas_io", self.atlas)
             sh.image("rc_state_io", self.state)
+            sh.image("rc_miss_io", self.miss)
             compute.dispatch(sh, SLOT_W * RES, -(-budget // SLOT_W) * RES)
         self.camera = cam
         self.last = dict(budget=budget, frame=frame)
 
     def bind(self, sh):
         """radiance_cache_lib.glsl's samplers."""
-        for name, tex in zip(SAMPLERS, (self.cells, self.slots, self.state, self.atlas)):
+        for name, tex in zip(SAMPLERS, (self.cells, self.slots, self.state, self.atlas,
+                                        self.miss)):
             sh.uniform_sampler(name, tex)
 
     def resolve(self, resources, gsdf, cache, sky, voxels, probe_tex: dict, probe_res: int,
@@ -221,15 +227,18 @@ class RadianceCache:
     def read(self) -> dict:
         """{'slots': [capacity, 4] (world cell xyz, level + 1; 0 free), 'state' [capacity, 4]
         (x: frame + 1 of the last trace), 'atlas' [capacity, RES, RES, 4] (texel [y, x]),
+        'miss' [capacity, RES, RES] (share of the texel's rays that left the scene),
         'cells' [LEVELS, N, N, N] (slot + 1 per texel, [level, z, y, x])}."""
         rows = self.capacity // SLOT_W
         atlas = compute.read(self.atlas).reshape(rows, RES, SLOT_W, RES, 4)
         return {"slots": compute.read(self.slots).reshape(-1, 4),
                 "state": compute.read(self.state).reshape(-1, 4),
                 "atlas": atlas.transpose(0, 2, 1, 3, 4).reshape(-1, RES, RES, 4),
+                "miss": compute.read(self.miss)[..., 0].reshape(rows, RES, SLOT_W, RES)
+                .transpose(0, 2, 1, 3).reshape(-1, RES, RES),
                 "cells": compute.read(self.cells)[..., 0].reshape(LEVELS, N, N, N)}
 
-    def view(self, gbuf: dict, cam_pos, width: int, height: int) -> np.ndarray:
+    def view(self, gbuf: dict, sky, cam_pos, width: int, height: int) -> np.ndarray:
         """glsl/radiance_cache_view.comp.glsl (the RADIANCE_CACHE debug view): float32 [h, w, 4],
         per pixel what the cache gives a ray along the surface normal (w = level + 1; magenta,
         w = 0: no traced probe serves it; background w = -1)."""
@@ -237,7 +246,8 @@ class RadianceCache:
         sh = compute.shader("radiance_cache_view",
                             samplers=("gbuf_position", "gbuf_normal") + SAMPLERS,
                             push=(('VEC3', 'cam_pos'), CAMERA),
-                            libs=("gbuffer_lib.glsl",) + LOOKUP)
+                            libs=("gbuffer_lib.glsl",) + LOOKUP, sky=True)
+        sky.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
@@ -255,7 +265,7 @@ class RadianceCache:
         return {"radiance_cache_cells": size(self.cells, 4) + size(self.marks, 4),
                 "radiance_cache_slots": size(self.slots, 16) + size(self.state, 16)
                 + size(self.list, 16) + size(self.free, 4) + 16,
-                "radiance_cache_atlas": size(self.atlas, 16)}
+                "radiance_cache_atlas": size(self.atlas, 16) + size(self.miss, 4)}
 
 
 def bind_lookup(sh, rcache, cam_pos):

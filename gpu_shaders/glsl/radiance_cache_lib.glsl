@@ -1,5 +1,6 @@
 /* Lumen GI: reading the world radiance cache (needs radiance_cache_layout_lib.glsl,
- * octahedral_lib.glsl and the samplers rc_cells, rc_slots, rc_state, rc_atlas).
+ * octahedral_lib.glsl, sky_lib.glsl and the samplers rc_cells, rc_slots, rc_state, rc_atlas,
+ * rc_miss).
  *
  * rc_lookup(o, d, k): the far-field radiance for a screen-probe ray from o along d that met
  * nothing within rc_trace_distance(k): the 8 probes around o, trilinear weights, each read in
@@ -8,7 +9,8 @@
  * distance the screen ray covered), direction X - P. Leak rule: the probe's own rays in that
  * texel (from P, full length) must not have met a surface before X (the atlas' alpha, the
  * texel's nearest hit): else a wall lies between the probe and the ray, and the probe (in a
- * solid, behind a thin wall) is left out. False when no probe is left (the ray traces on).
+ * solid, behind a thin wall) is left out. A texel holds its hits' light plus the share of its
+ * rays that left the scene: that share of the sky is read in the ray's own direction d. False when no probe is left (the ray traces on).
  * rc_radiance (with gi_trace_lib.glsl included before): a whole ray, short trace + cache.
  */
 #ifndef LUMEN_RC_LIB
@@ -50,7 +52,8 @@ bool rc_lookup(vec3 o, vec3 d, int k, out vec3 L)
     if (r.a < R) {
       continue;                                 /* the probe cannot see X */
     }
-    sum += w * r.rgb;
+    sum += w * (r.rgb + texelFetch(rc_miss, st * RC_RES + oct_texel(op + tx * d, RC_RES), 0).x
+                * sky_ray(d));
     wsum += w;
   }
   if (wsum <= 0.0) {
