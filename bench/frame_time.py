@@ -25,8 +25,13 @@ With `--viewport W H` it also times the viewport path: the engine's own view_dra
 (tools/viewport_harness.py: offscreen, duck-typed context, one GI iteration per redraw) at viewport
 Pixel Size 1 and 2, against EEVEE's 1-sample render at W x H.
 
+With `--radiance-cache` it also renders with the world radiance cache (radiance_cache.py) off
+and on: F12 one-GI-frame renders alternately (an F12 render starts with an empty cache: the
+first frame) and `--repeat` + 1 view_draw redraws of the still camera at --size (the cache kept,
+rc_budget probes re-traced per redraw), printing frame, GI and screen-probe medians and ratios.
+
     ./lumen bench frame_time [--size 256] [--repeat 5] [--extra-objects N] [--trace] [--compare]
-                             [--viewport 640 360]
+                             [--viewport 640 360] [--radiance-cache]
 """
 from __future__ import annotations
 
@@ -125,6 +130,43 @@ def compare_voxel_lighting(repeat: int) -> dict:
     return runs
 
 
+def compare_radiance_cache(scene, size: int, repeat: int) -> dict:
+    """The world radiance cache off / on (GISettings.radiance_cache, patched into
+    gi_settings.from_scene as --compare does): F12 one-GI-frame renders alternately (each
+    starts with an empty cache: the first frame, every probe it needs traced) and view_draw at
+    size x size (tools/viewport_harness.py: a still camera, `repeat` + 1 redraws, the cache
+    kept across them and rc_budget probes re-traced per redraw). Returns {on: {'f12': [(s,
+    gi_timings)], 'view': [(s, gi_timings)]}}."""
+    import dataclasses
+
+    import bpy
+    import viewport_harness
+    from lumen_gi.gpu_shaders import engine, gi_settings
+
+    original = gi_settings.from_scene
+    runs = {False: {"f12": [], "view": []}, True: {"f12": [], "view": []}}
+    try:
+        for _ in range(repeat):
+            for on in (False, True):
+                gi_settings.from_scene = (lambda s, viewport=False, on=on: dataclasses.replace(
+                    original(s, viewport), radiance_cache=on))
+                t = time.perf_counter()
+                bpy.ops.render.render()
+                runs[on]["f12"].append((time.perf_counter() - t,
+                                        dict(engine.LAST_RENDER["gi_timings"])))
+        scene.lumen.engine.viewport_quality = scene.lumen.engine.render_quality
+        for on in (False, True):
+            gi_settings.from_scene = (lambda s, viewport=False, on=on: dataclasses.replace(
+                original(s, viewport), radiance_cache=on))
+            out = viewport_harness.run(
+                scene, engine.LumenGIRenderEngine, size, size, redraws=repeat + 1,
+                on_redraw=lambda i: dict(engine.LAST_RENDER.get("gi_timings", {})))
+            runs[on]["view"] = list(zip(out["seconds"], out["after"]))
+    finally:
+        gi_settings.from_scene = original
+    return runs
+
+
 def trace_bench(scene, size: int, repeat: int, quality: str) -> dict:
     """See the module docstring (--trace). Runs inside a tiny RenderEngine (a GPU context)."""
     import bpy
@@ -211,6 +253,9 @@ def main():
                     help="unique cubes added on a 40 m grid (more cards: the surface-cache budget)")
     ap.add_argument("--compare", action="store_true",
                     help="also render with voxel lighting off and on, alternately")
+    ap.add_argument("--radiance-cache", action="store_true",
+                    help="also render with the world radiance cache off and on: F12 (first "
+                    "frame) alternately, and still-camera view_draw redraws")
     ap.add_argument("--trace", action="store_true",
                     help="also time gi_trace per camera ray: voxel lighting vs mesh refinement")
     ap.add_argument("--viewport", type=int, nargs=2, metavar=("W", "H"),
@@ -247,6 +292,8 @@ def main():
             breakdown.update({"gi_" + k: round(v * 1000, 1) for k, v in R["gi_timings"].items()})
         trace = trace_bench(scene, args.size, args.repeat, args.quality) if args.trace else None
         compare = compare_voxel_lighting(args.repeat) if args.compare else None
+        rcache = (compare_radiance_cache(scene, args.size, args.repeat)
+                  if args.radiance_cache else None)
         viewport = {}
         if args.viewport:
             import viewport_harness
@@ -295,6 +342,25 @@ def main():
               f"voxel update - / {med(True, 'voxel_lighting'):.1f} ms; each run's frame ms: "
               f"off {[round(r[0] * 1000) for r in compare[False]]}, "
               f"on {[round(r[0] * 1000) for r in compare[True]]}")
+    if rcache:
+        def rc_med(on, kind, key=None, first=False):
+            rows = rcache[on][kind]
+            rows = rows[:1] if first else (rows[1:] if kind == "view" else rows)
+            return statistics.median(r[0] if key is None else r[1].get(key, 0.0)
+                                     for r in rows) * 1000
+        for kind, label in (("f12", "F12, one GI frame, empty cache (first frame)"),
+                            ("view", f"view_draw {args.size}x{args.size}, still camera, "
+                                     f"redraws 2..{args.repeat + 1}")):
+            print(f"radiance cache off / on, {label}: frame {rc_med(False, kind):.1f} / "
+                  f"{rc_med(True, kind):.1f} ms (x{rc_med(False, kind) / rc_med(True, kind):.2f}),"
+                  f" GI {rc_med(False, kind, 'total'):.1f} / {rc_med(True, kind, 'total'):.1f} ms,"
+                  f" screen probes {rc_med(False, kind, 'probes'):.1f} / "
+                  f"{rc_med(True, kind, 'probes'):.1f} ms "
+                  f"(x{rc_med(False, kind, 'probes') / rc_med(True, kind, 'probes'):.2f})")
+        print(f"radiance cache view_draw first redraw off / on: {rc_med(False, 'view', first=True):.1f}"
+              f" / {rc_med(True, 'view', first=True):.1f} ms, screen probes "
+              f"{rc_med(False, 'view', 'probes', True):.1f} / "
+              f"{rc_med(True, 'view', 'probes', True):.1f} ms")
     if trace:
         print(f"gi_trace {args.size}x{args.size} camera rays: voxel lighting "
               f"{trace['voxel'] * 1000:.1f} ms ({trace['global'] * 100:.0f}% global-SDF hits, "

@@ -2,7 +2,8 @@
 
     .venv/bin/python bench/quality.py [--size 256] [--scenes cornell,window,thin]
         [--cycles-samples 1024] [--engines cycles_ref,cycles_4spp_oidn,eevee,eevee_rt,
-        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_lpv,lumen_vxgi,lumen_off] [--out out/quality]
+        eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_lpv,lumen_vxgi,lumen_off,
+        lumen_rc] [--out out/quality]
         [--quick] [--verbose]
 
 Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornell` (area light
@@ -33,6 +34,7 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
     lumen_vxgi        GI Method VXGI (voxel cone tracing over the voxel lighting), Medium, 8 frames
     lumen_off         GI Off (gi_quality='OFF'): direct light and the SDF-occluded sky only, the
                       floor every GI method must beat
+    lumen_rc          lumen with the world radiance cache on (gpu_shaders/radiance_cache.py)
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -73,7 +75,7 @@ import quality_scenes  # noqa: E402
 
 ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
            "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_lpv", "lumen_vxgi",
-           "lumen_off")
+           "lumen_off", "lumen_rc")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -536,6 +538,11 @@ def hidden_drawn(scene, position, share=0.02):
     return "; ".join(notes)
 
 
+def run_lumen_rc(ctx):
+    """lumen with the world radiance cache on (scene.lumen.engine.radiance_cache)."""
+    return run_lumen(ctx, (("radiance_cache", True),))
+
+
 RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "eevee": run_eevee,
            "eevee_rt": run_eevee_rt, "eevee_volume": run_eevee_volume, "lumen": run_lumen,
            "lumen_high": run_lumen_high,
@@ -543,7 +550,8 @@ RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "e
            "lumen_rsm": lambda ctx: run_lumen(ctx, LUMEN_RSM_SETTINGS),
            "lumen_lpv": lambda ctx: run_lumen(ctx, LUMEN_LPV_SETTINGS),
            "lumen_vxgi": lambda ctx: run_lumen(ctx, LUMEN_VXGI_SETTINGS),
-           "lumen_off": lambda ctx: run_lumen(ctx, LUMEN_OFF_SETTINGS)}
+           "lumen_off": lambda ctx: run_lumen(ctx, LUMEN_OFF_SETTINGS),
+           "lumen_rc": run_lumen_rc}
 
 
 # Metrics and images ----------------------------------------------------------------------------

@@ -4,7 +4,8 @@ an image, allocate and read RGBA32F textures. Needs a GPU context.
 A pass is declared by what it reads: `scene` (sdf_lib.glsl's three samplers; sdf_ray_lib.glsl
 comes with it), `surface_cache`
 (surface_cache_lib.glsl's), `global_sdf` (global_sdf_lib.glsl's), `sky` (sky_lib.glsl's), extra 2D float samplers, images
-(binding order = listed order, RGBA32F unless given) and push constants; its source is the
+(binding order = listed order, RGBA32F unless given; integer formats such as R32I
+are iimage2D, for atomics) and push constants; its source is the
 libraries it needs followed by glsl/<name>.comp.glsl.
 """
 from __future__ import annotations
@@ -84,7 +85,8 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
         im_name = im[0]
         fmt = im[1] if len(im) > 1 else 'RGBA32F'
         access = im[2] if len(im) > 2 else {'WRITE'}
-        info.image(k, fmt, 'FLOAT_2D', im_name, qualifiers=set(access))
+        info.image(k, fmt, 'INT_2D' if fmt.endswith('I') else 'FLOAT_2D', im_name,
+                   qualifiers=set(access))
     for kind, pname in push:
         info.push_constant(kind, pname)
     src += [glsl(lib) for lib in libs] + [glsl(name + ".comp.glsl")]

@@ -23,7 +23,9 @@ STEPS (heat map), HYBRID (green: mesh-SDF hit, blue: global-SDF hit); the surfac
 through the cards: SC_FINAL, SC_ALBEDO, SC_NORMAL, SC_DIRECT, SC_INDIRECT, CARDS (a colour per
 card; magenta where no card sees the point), SC_UPDATES (update heat of the budget: green relit
 this frame to red 8+ frames ago, magenta not yet); PROBES (the probe radiance atlas) and
-PROBE_FALLBACK (green: interpolated from probes, red: traced per pixel).
+PROBE_FALLBACK (green: interpolated from probes, red: traced per pixel); VOXEL_LIGHTING;
+RADIANCE_CACHE (what the world radiance cache gives a ray along the normal; magenta: no traced
+probe there; the cache must be on: GISettings.radiance_cache, else Combined).
 
 GPU inputs live in a scene_state.SceneState owned by the engine instance, as Cycles' session
 is: a viewport's engine keeps one for its lifetime, and a redraw re-uploads only what changed
@@ -64,7 +66,7 @@ VIEW_PROPERTY = "lumen_preview_view"       # legacy: "DEPTH" selects the DEPTH d
 DEBUG_VIEWS = ("COMBINED", "DEPTH", "STEPS", "NORMAL", "ALBEDO", "DIRECT", "INDIRECT", "HYBRID",
                "SC_FINAL", "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS",
                "SC_UPDATES", "PROBES",
-               "PROBE_FALLBACK", "VOXEL_LIGHTING")
+               "PROBE_FALLBACK", "VOXEL_LIGHTING", "RADIANCE_CACHE")
 TRACE_VIEWS = ("DEPTH", "STEPS", "HYBRID")
 CARD_VIEWS = {"SC_FINAL": "final", "SC_ALBEDO": "albedo", "SC_NORMAL": "normal",
               "SC_DIRECT": "direct", "SC_INDIRECT": "indirect", "CARDS": "cards",
@@ -435,6 +437,9 @@ def _debug_image(view, state, gbuf, images, cam_pos, width, height, gi_cfg):
         shown[..., 1] = (w > 0).astype(np.float32)
     elif view == "VOXEL_LIGHTING" and getattr(state, "voxel_lighting", None) is not None:
         shown = state.voxel_lighting.view(state.global_sdf, gbuf, cam_pos, width, height)
+        shown[shown[..., 3] < 0] = 0.0
+    elif view == "RADIANCE_CACHE" and getattr(state, "radiance_cache", None) is not None:
+        shown = state.radiance_cache.view(gbuf, state.sky, cam_pos, width, height)
         shown[shown[..., 3] < 0] = 0.0
     else:
         shown = {"DIRECT": images["direct"], "INDIRECT": images["indirect"],

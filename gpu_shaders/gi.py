@@ -12,6 +12,9 @@
     screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py);
                          or another final gather passed as `gather` (GI Method VXGI: vxgi.py's
                          cones read the same voxel lighting)
+                         with GISettings.radiance_cache the rays trace ~2 m and the world
+                         radiance cache (radiance_cache.py, kept in the SceneState, reset when
+                         the scene changes) gives the far field
 
 `indirect_light` returns the per-pixel indirect irradiance texture. For F12 renders
 (`final=True`) everything accumulated is reset first and GISettings.render_schedule() runs:
@@ -48,6 +51,15 @@ def _voxel_lighting(state, gsdf):
     return v
 
 
+def _radiance_cache(state, gi: GISettings):
+    from .radiance_cache import RadianceCache
+
+    rc = getattr(state, "radiance_cache", None)
+    if rc is None or rc.spacing != float(gi.rc_spacing) or rc.capacity < gi.rc_capacity:
+        rc = state.radiance_cache = RadianceCache(gi.rc_spacing, gi.rc_capacity)
+    return rc
+
+
 def _probes(state, gi: GISettings, width: int, height: int):
     from .screen_probes import ScreenProbes
 
@@ -75,8 +87,12 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         or state.gi_sky != sky.key
     if final or scene_changed or view_key != state.gi_view_key:
         probes.history = None                    # the pixels' history no longer applies
+    rcache = (_radiance_cache(state, gi)          # the screen probes' far field (not VXGI's)
+              if gi.radiance_cache and gi.gather == "PROBES" and gather is None else None)
     if final or scene_changed:
         cache.reset_lighting()
+        if rcache is not None:
+            rcache.reset = True                  # every probe is traced again
     if final:
         state.gi_frame = 0                       # the same jitter sequence every render
     state.gi_view_key, state.gi_sky = view_key, sky.key
@@ -98,7 +114,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         # one iteration; the surface cache's tiles blend by their own counts (plan() above)
         m = probes.history is not None and probes.frames or 0
         schedule = [(1.0, max(1.0 / (m + 1), 1.0 / gi.history))]
-    result, relit = None, 0
+    result, relit, gathered = None, 0, 0
     relight = final or scene_changed         # the voxel lighting holds light from before a reset
     for sc_blend, px_blend in schedule:
         frame = state.gi_frame
@@ -129,7 +145,19 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 new = pixel_gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max,
                                    gi.pixel_rays, width, height, voxels)
             else:
-                new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels)
+                # F12: every cache probe traced every gathered frame, texels a running mean
+                # (as the screen probes' own rays are: the same image quality); viewport: the
+                # budget, new probes first, exponential
+                rc = {}
+                if rcache is not None:
+                    rc = dict(rcache=rcache, rc_budget=gi.rc_budget, rc_blend=0.25,
+                              rc_retrace=gi.rc_retrace)
+                    if final:
+                        rc.update(rc_budget=rcache.capacity, rc_blend=1.0 / (gathered + 1),
+                                  rc_retrace=None)
+                new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels,
+                                    **rc)
+                gathered += 1
             result = probes.temporal(new, px_blend)
         timings["gsdf"] += b - a
         timings["voxel_lighting"] += (v - b) + (c2 - c)

@@ -15,6 +15,11 @@ F12 render accumulates:
 `voxel_lighting` (on unless a settings object says otherwise): a global-SDF hit is searched among
 its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, it is searched on
 every mesh SDF and reads the surface cache, whose cost grows with the number of objects.
+`radiance_cache` (off unless a settings object says otherwise: the scene's `radiance_cache`):
+screen-probe rays trace ~2 m and take the far field from the world radiance cache
+(radiance_cache.py; rc_spacing, rc_budget probes traced per viewport frame, new first, of
+them at most rc_retrace re-traced, rc_capacity slots); an F12 render traces every probe it
+needs on every gathered frame.
 """
 from __future__ import annotations
 
@@ -43,6 +48,11 @@ class GISettings:
     gather: str = "PROBES"         # PROBES (screen probes) or PIXEL (reference: rays per pixel)
     pixel_rays: int = 64           # PIXEL: cosine rays per pixel per frame
     voxel_lighting: bool = True    # far (global-SDF) hits read voxel lighting
+    radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
+    rc_spacing: float = 0.577      # radiance cache level-0 probe spacing (m): 2 m screen rays
+    rc_budget: int = 16            # radiance cache probes traced per viewport frame (new first)
+    rc_retrace: int = 8            # of them, at most this many re-traced (least recent first)
+    rc_capacity: int = 2048        # radiance cache probe slots
 
     @property
     def enabled(self) -> bool:
@@ -87,4 +97,5 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
     return settings(q, bounces=int(getattr(s, "bounces", d.bounces)),
                     render_frames=int(getattr(s, "render_frames", d.render_frames)),
                     gather=str(getattr(s, "gi_gather", d.gather)),
-                    voxel_lighting=bool(getattr(s, "voxel_lighting", d.voxel_lighting)), **extra)
+                    voxel_lighting=bool(getattr(s, "voxel_lighting", d.voxel_lighting)),
+                    radiance_cache=bool(getattr(s, "radiance_cache", d.radiance_cache)), **extra)

@@ -4,7 +4,9 @@ gather of indirect light for every pixel, from few probes.
 Per frame, one GLSL pass each:
     screen_probe_place      one probe per tile x tile pixels on a jittered G-buffer pixel
     screen_probe_trace      res x res octahedral rays per probe (whole sphere, world directions,
-                            jittered per frame) through gi_trace_lib: surface cache at hits, sky
+                            jittered per frame) through gi_trace_lib: surface cache at hits, sky;
+                            with the world radiance cache (radiance_cache.py) rays trace ~2 m,
+                            then the cache's update and resolve passes give the far field
     screen_probe_links      which of its 3x3 neighbours each probe sees (short SDF rays, once
                             per probe)
     screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
@@ -20,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import compute, voxel_lighting
+from . import compute, radiance_cache, voxel_lighting
 from .probe_math import hammersley
 
 GI_LIBS = (("sampling_lib.glsl", "octahedral_lib.glsl") + voxel_lighting.LIBS
@@ -46,10 +48,13 @@ class ScreenProbes:
         return tile, ray
 
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
-               voxels=None):
+               voxels=None, rcache=None, rc_budget: int = 0, rc_blend: float = 0.25,
+               rc_retrace=None):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
         0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
-        (None: refined on the mesh SDFs)."""
+        (None: refined on the mesh SDFs). rcache: radiance_cache.RadianceCache (None: off): rays
+        trace ~2 m and take the far field from it, `rc_budget` cache probes traced (new first),
+        of them at most `rc_retrace` re-traced."""
         gw, gh = self.grid
         r = self.res
         tile_j, ray_j = self.jitter(frame)
@@ -71,8 +76,11 @@ class ScreenProbes:
 
         tex["radiance"] = compute.texture((gw * r, gh * r))
         sh = compute.shader("screen_probe_trace", samplers=("probe_info", "probe_normal") + VL,
-                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max')),
-                            libs=GI_LIBS, scene=True, surface_cache=True, global_sdf=True)
+                            images=("out_image", ("rc_marks", 'R32F')),
+                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max'),
+                                  radiance_cache.CAMERA, ('INT', 'rc_frame')),
+                            libs=GI_LIBS + radiance_cache.MARK, scene=True, surface_cache=True,
+                            global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
@@ -83,8 +91,16 @@ class ScreenProbes:
         sh.uniform_int("probe_res", r)
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.uniform_float("t_max", float(t_max))
+        if rcache is not None:
+            rcache.bind_trace(sh, cam_pos, frame)
+        else:
+            marks = radiance_cache.bind_off(sh)  # noqa: F841 (held until the dispatch)
         sh.image("out_image", tex["radiance"])
         compute.dispatch(sh, gw * r, gh * r)
+        if rcache is not None:    # the far field of the rays that met nothing within ~2 m
+            rcache.update(resources, gsdf, cache, sky, voxels, cam_pos, frame, t_max, rc_budget,
+                          rc_blend, rc_retrace)
+            rcache.resolve(resources, gsdf, cache, sky, voxels, tex, r, ray_j, cam_pos, t_max)
 
         tex["links"] = compute.texture((gw, gh), 'R32F')
         sh = compute.shader("screen_probe_links", samplers=("probe_info", "probe_normal"),
@@ -124,11 +140,12 @@ class ScreenProbes:
         tex["integrated"] = compute.texture((self.width, self.height))
         sh = compute.shader("screen_probe_integrate",
                             samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
-                                      "probe_sh") + VL,
+                                      "probe_sh") + VL + radiance_cache.SAMPLERS,
+                            images=("out_image", ("rc_marks", 'R32F')),
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
-                                  ('FLOAT', 't_max')),
+                                  ('FLOAT', 't_max'), radiance_cache.CAMERA),
                             libs=("gbuffer_lib.glsl", "sh_lib.glsl", "probe_interp_lib.glsl")
-                            + GI_LIBS,
+                            + GI_LIBS + radiance_cache.LOOKUP + radiance_cache.MARK,
                             scene=True, surface_cache=True, global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
@@ -144,6 +161,7 @@ class ScreenProbes:
         sh.uniform_sampler("probe_sh", tex["sh"])
         sh.uniform_float("cam_pos", compute.vec(cam_pos))
         sh.uniform_int("probe_tile", self.tile)
+        rc_held = radiance_cache.bind_lookup(sh, rcache, cam_pos)  # noqa: F841 (dispatch)
         sh.image("out_image", tex["integrated"])
         compute.dispatch(sh, self.width, self.height)
         return tex["integrated"]

@@ -141,6 +141,12 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                ('PIXEL', "Per Pixel (Reference)", "64 rays for every pixel each frame: slow, a "
                 "reference to check the probes against")),
         default=GI.gather)
+    radiance_cache: BoolProperty(
+        name="Radiance Cache",
+        description="Experimental: rays stop after about 2 m and take the far light from probes "
+                    "kept between frames. Off by default: on llvmpipe it saves little time and "
+                    "made two of three test scenes slightly worse",
+        default=GI.radiance_cache)
     ssgi_rays: IntProperty(
         name="SSGI Rays per Pixel",
         description="Rays each pixel sends per frame to find bounced light on screen. More is "
@@ -250,7 +256,10 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                 "pixel's plane, red: fallback (no probe on that plane)"),
                ('VOXEL_LIGHTING', "Voxel Lighting", "What a far (global SDF) ray hit reads from "
                 "the voxel lighting, along the camera ray (magenta: no voxel face serves it; such "
-                "hits read the surface cache)")),
+                "hits read the surface cache)"),
+               ('RADIANCE_CACHE', "Radiance Cache", "What the world radiance cache gives a ray "
+                "leaving each surface along its normal (magenta: no traced probe serves it; with "
+                "the cache off, Combined)")),
         default='COMBINED')
 
 

@@ -5,9 +5,11 @@
  * E = sum w_i sh9_irradiance(c_i, n). Where no probe lies on the pixel's plane (lighting_valid 0:
  * silhouettes, thin objects) the visible probes are used by their bilinear weights alone, and with
  * none visible the pixel traces FALLBACK_RAYS rays itself; such pixels are flagged (w = 0) for the
- * debug view.
+ * debug view. With the world radiance cache on, the fallback rays trace ~2 m and take the far
+ * field from it (rc_radiance), marking the cells around the pixel for the next frame's probes.
  * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, the mesh SDFs;
- * cam_pos, probe_tile; for the fallback rays the surface cache and global SDF, frame, t_max.
+ * cam_pos, probe_tile; for the fallback rays the surface cache and global SDF, frame, t_max,
+ * the radiance cache's samplers, rc_camera and image rc_marks.
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0 fallback, -1 background.
  */
 #define FALLBACK_RAYS 16
@@ -56,10 +58,17 @@ void main()
       vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
       vec3 o = p + n * max(voxel, 1e-3);
       vec3 sum = vec3(0.0);
+      int k = rc_level(o);
+      bool mark = false;
       for (int i = 0; i < FALLBACK_RAYS; i++) {
         vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(FALLBACK_RAYS)) + rot), n);
-        float t, wt;
-        sum += gi_radiance(o, dir, t_max, t, wt);
+        float t;
+        int status;
+        sum += rc_radiance(o, dir, t_max, k, t, status);
+        mark = mark || status > 0;
+      }
+      if (mark) {
+        rc_mark(o, k, frame);     /* probes for this pixel's next frames */
       }
       imageStore(out_image, px, vec4(3.14159265358979 * sum / float(FALLBACK_RAYS), 0.0));
       return;

@@ -3,9 +3,14 @@
  * gi_trace_lib.glsl (mesh SDFs near, global SDF far, the surface cache at hits, sky on a miss).
  * Directions are jittered inside their texel by ray_jitter (the same for every probe of a frame).
  * Rays start one voxel of the nearest object off the probe's surface along its normal.
- * Inputs: probe_info, probe_normal; push constants probe_res, ray_jitter, t_max.
+ * With the world radiance cache on (rc_camera.w > 0, radiance_cache_layout_lib.glsl) a ray whose
+ * origin lies in a cache level traces only rc_trace_distance (2 m at level 0): without a hit it
+ * is flagged (alpha -2, radiance_cache_resolve fills it in) and marks the 8 cache cells around
+ * its origin as used this frame (rc_frame), so that their probes are allocated and traced.
+ * Inputs: probe_info, probe_normal; push constants probe_res, ray_jitter, t_max, rc_camera,
+ * rc_frame; image rc_marks.
  * Output out_image (probe atlas, probe (i, j) at texels [i*res, (i+1)*res) x [j*res, ...)):
- * radiance rgb, a = hit distance (t_max on a miss, -1 where there is no probe).
+ * radiance rgb, a = hit distance (t_max on a miss, -1 where there is no probe, -2 to resolve).
  */
 void main()
 {
@@ -27,7 +32,14 @@ void main()
   int obj;
   sdf_scene(info.xyz, h, obj);
   vec3 o = info.xyz + n * max(gi_object_voxel(max(obj, 0)), 1e-3);
+  int k = rc_level(o);
+  float tmax = k >= 0 ? min(rc_trace_distance(k), t_max) : t_max;
   float t, w;
-  vec3 L = gi_radiance(o, dir, t_max, t, w);
+  vec3 L = gi_radiance(o, dir, tmax, t, w);
+  if (tmax < t_max && t >= tmax) {
+    rc_mark(o, k, rc_frame);
+    imageStore(out_image, tx, vec4(0.0, 0.0, 0.0, -2.0));
+    return;
+  }
   imageStore(out_image, tx, vec4(L, t));
 }
