@@ -33,11 +33,14 @@ ATTACHMENTS = ("position", "normal", "albedo", "emission")
 _SHADER = {}
 
 
-def gbuffer_shader():
-    if "gbuffer" not in _SHADER:
-        src = glsl("gbuffer.glsl")
-        vert, frag = src.split("//FRAGMENT")
-        iface = gpu.types.GPUStageInterfaceInfo("lumen_gbuffer_iface")
+def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
+    """A G-buffer shader: gbuffer.glsl's fragment stage (the four attachments, material textures)
+    after `vertex_source`. instanced: the vertex stage reads its instance's matrices from the
+    `instances` texture at row instance_base + gl_InstanceID (mesh_batches.py). One declaration
+    for both, so the two vertex stages cannot drift apart from the fragment stage."""
+    if key not in _SHADER:
+        frag = glsl("gbuffer.glsl").split("//FRAGMENT")[1]
+        iface = gpu.types.GPUStageInterfaceInfo(f"lumen_{key}_iface")
         iface.smooth('VEC3', "v_pos")
         iface.smooth('VEC3', "v_nor")
         iface.smooth('VEC2', "v_uv")
@@ -45,22 +48,31 @@ def gbuffer_shader():
         iface.flat('VEC3', "v_emit")
         info = gpu.types.GPUShaderCreateInfo()
         info.push_constant('MAT4', "view_proj")
+        if instanced:
+            info.push_constant('INT', "instance_base")
         info.push_constant('INT', "use_albedo_tex")
         info.push_constant('INT', "use_emit_tex")
         info.push_constant('INT', "albedo_base_h")
         info.push_constant('INT', "emit_base_h")
         info.sampler(0, 'FLOAT_2D', "albedo_tex")
         info.sampler(1, 'FLOAT_2D', "emit_tex")
+        if instanced:
+            info.sampler(2, 'FLOAT_2D', "instances")
         for slot, (name, kind) in enumerate((("pos", 'VEC3'), ("nor", 'VEC3'), ("uv", 'VEC2'),
                                              ("albedo", 'VEC3'), ("emit", 'VEC3'))):
             info.vertex_in(slot, kind, name)
         info.vertex_out(iface)
         for slot, name in enumerate(ATTACHMENTS):
             info.fragment_out(slot, 'VEC4', "out_" + name)
-        info.vertex_source(vert)
+        info.vertex_source(vertex_source)
         info.fragment_source(frag)
-        _SHADER["gbuffer"] = gpu.shader.create_from_info(info)
-    return _SHADER["gbuffer"]
+        _SHADER[key] = gpu.shader.create_from_info(info)
+    return _SHADER[key]
+
+
+def gbuffer_shader():
+    """World-space corners (render_gbuffer: the RSMs' light views, tests)."""
+    return gbuffer_program("gbuffer", glsl("gbuffer.glsl").split("//FRAGMENT")[0])
 
 
 def texture_rgba(tex) -> np.ndarray:

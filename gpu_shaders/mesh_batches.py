@@ -23,43 +23,15 @@ import gpu
 import numpy as np
 from gpu_extras.batch import batch_for_shader
 
-from .gbuffer import ATTACHMENTS, scene_triangles, upload_texture
+from .gbuffer import ATTACHMENTS, gbuffer_program, scene_triangles, upload_texture
 from .resources import float_buffer, glsl
 
 TEXELS = 6                      # instance table texels per row
-_SHADER = {}
 
 
 def instanced_shader():
-    if "shader" not in _SHADER:
-        vert = glsl("gbuffer_instanced.glsl")
-        frag = glsl("gbuffer.glsl").split("//FRAGMENT")[1]
-        iface = gpu.types.GPUStageInterfaceInfo("lumen_gbuffer_inst_iface")
-        iface.smooth('VEC3', "v_pos")
-        iface.smooth('VEC3', "v_nor")
-        iface.smooth('VEC2', "v_uv")
-        iface.flat('VEC3', "v_albedo")
-        iface.flat('VEC3', "v_emit")
-        info = gpu.types.GPUShaderCreateInfo()
-        info.push_constant('MAT4', "view_proj")
-        info.push_constant('INT', "instance_base")
-        info.push_constant('INT', "use_albedo_tex")
-        info.push_constant('INT', "use_emit_tex")
-        info.push_constant('INT', "albedo_base_h")
-        info.push_constant('INT', "emit_base_h")
-        info.sampler(0, 'FLOAT_2D', "albedo_tex")
-        info.sampler(1, 'FLOAT_2D', "emit_tex")
-        info.sampler(2, 'FLOAT_2D', "instances")
-        for slot, (name, kind) in enumerate((("pos", 'VEC3'), ("nor", 'VEC3'), ("uv", 'VEC2'),
-                                             ("albedo", 'VEC3'), ("emit", 'VEC3'))):
-            info.vertex_in(slot, kind, name)
-        info.vertex_out(iface)
-        for slot, name in enumerate(ATTACHMENTS):
-            info.fragment_out(slot, 'VEC4', "out_" + name)
-        info.vertex_source(vert)
-        info.fragment_source(frag)
-        _SHADER["shader"] = gpu.shader.create_from_info(info)
-    return _SHADER["shader"]
+    """gbuffer.gbuffer_program with glsl/gbuffer_instanced.glsl's vertex stage."""
+    return gbuffer_program("gbuffer_instanced", glsl("gbuffer_instanced.glsl"), instanced=True)
 
 
 def drawable(matrices: np.ndarray, visible: np.ndarray) -> np.ndarray:
