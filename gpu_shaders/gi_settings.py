@@ -48,6 +48,7 @@ class GISettings:
     gather: str = "PROBES"         # PROBES (screen probes) or PIXEL (reference: rays per pixel)
     pixel_rays: int = 64           # PIXEL: cosine rays per pixel per frame
     voxel_lighting: bool = True    # far (global-SDF) hits read voxel lighting
+    cache_relax: float = 1.5       # F12: the surface cache's over-relaxation (1: plain bounces)
     radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
     rc_spacing: float = 0.577      # radiance cache level-0 probe spacing (m): 2 m screen rays
     rc_budget: int = 16            # radiance cache probes traced per viewport frame (new first)
@@ -69,10 +70,13 @@ class GISettings:
         0.0575 -> 0.0417 (bias -22.0% -> -15.5%), glow 0.134 -> 0.097 (-25.6% -> -22.4%),
         cornell 0.0366 -> 0.0367 (-6.2% -> -4.3%), at the same cost. (Re-tracing the cache only
         every other frame was measured too: 2x faster cache, but the window room's relMSE rose
-        from 0.060 to 0.067: its light needs every bounce.)"""
-        warm = [(1.0, None)] * max(self.bounces - 1, 0)
+        from 0.060 to 0.067: its light needs every bounce.)
+        The cache's blend is `cache_relax` (> 1: over-relaxation, applied per texel only where
+        the update goes the way its last one went; surface_cache_indirect.comp.glsl)."""
+        w = max(float(self.cache_relax), 1.0)
+        warm = [(w, None)] * max(self.bounces - 1, 0)
         frames = max(self.render_frames, 1)
-        return warm + [(1.0, 1.0 / (j + 1)) for j in range(frames)]
+        return warm + [(w, 1.0 / (j + 1)) for j in range(frames)]
 
 
 def settings(quality: str = "MEDIUM", **overrides) -> GISettings:

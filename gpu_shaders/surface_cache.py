@@ -73,6 +73,7 @@ class SurfaceCache:
         zero = np.zeros((lh, lw, 4), np.float32)
         self.direct = self._make("direct", (lw, lh), 'RGBA32F', zero)
         self.indirect = self._make("indirect", (lw, lh), 'RGBA32F', zero)
+        self.delta = self._make("indirect_delta", (lw, lh), 'RGBA32F', zero)  # last updates
         self.final = self._make("final", (lw, lh), 'RGBA32F', zero)
         # Radiosity probes, kept across frames: a frame relights only some tiles (pages), the
         # others keep their last rays, probes and SH for the filter and the interpolation.
@@ -103,6 +104,7 @@ class SurfaceCache:
         lw, lh = self.packed.lighting_size
         zero = np.zeros((lh, lw, 4), np.float32)
         self.indirect = _tex((lw, lh), 'RGBA32F', zero)
+        self.delta = _tex((lw, lh), 'RGBA32F', zero)   # each texel's last update (relaxation)
         self.final = _tex((lw, lh), 'RGBA32F', zero)
         for tex in self.probe_textures.values():
             tex.clear(format='FLOAT', value=(0.0, 0.0, 0.0, 0.0))
@@ -226,7 +228,8 @@ class SurfaceCache:
 
         sh = pass_shader("surface_cache_indirect", probe_libs,
                          ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos")
-                         + page_samplers, images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),),
+                         + page_samplers, images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),
+                                                  ("delta_image", 'RGBA32F', {'READ', 'WRITE'})),
                          own_out=False)
         resources.bind(sh)
         self.bind(sh)
@@ -238,6 +241,7 @@ class SurfaceCache:
         sh.uniform_sampler("sc_pages", pages)
         sh.uniform_sampler("sc_tile_frame", self.tile_frame)
         sh.image("out_image", self.indirect)                            # in place: read, blend
+        sh.image("delta_image", self.delta)
         compute.run(sh, k * TILE // GROUP, TILE // GROUP, 1)            # one per texel
         return k
 

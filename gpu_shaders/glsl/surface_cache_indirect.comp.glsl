@@ -4,11 +4,12 @@
  * irradiance, corrected by the SH for the texel's own normal; a probe that a wall hides from the
  * texel (gi_visible) is left out, and with no probe left the texel keeps its last value; then the
  * temporal blend
- * E = mix(E_prev, E_new, blend). Multi-bounce: the probes read last frame's final light.
+ * E = mix(E_prev, E_new, blend) (blend > 1: over-relaxed where safe, see the end). Multi-bounce: the probes read last frame's final light.
  * Runs over this frame's tiles (sc_pages: each with its own blend), in place: out_image holds
  * the previous E and is read and written by the same thread.
  * Inputs: texel_card, card tables and layers, sc_probes, sc_probe_sh, sc_probe_irradiance,
  * sc_probe_pos, sc_pages.
+ * delta_image (read-write): each texel's last update E_new - E_prev, w = 1 once written.
  * Output out_image (read-write): E.rgb (irradiance, W/m^2), w = 1 on surface texels interpolated from probes,
  * 0.5 where no probe could be used (covered texels, e.g. a floor under a wall), 0 elsewhere.
  */
@@ -55,5 +56,16 @@ void main()
   }
   vec3 prev = imageLoad(out_image, px).rgb;
   vec3 e = wsum > 0.0 ? E / wsum : prev;
-  imageStore(out_image, px, vec4(mix(prev, e, scp_page_blend(page)), wsum > 0.0 ? 1.0 : 0.5));
+  vec3 step = e - prev;
+  float blend = scp_page_blend(page);
+  /* blend > 1 (F12): over-relaxation, E + blend (E_new - E), which reaches the many-bounce light
+   * in fewer iterations, but only where this update goes the way this texel's last one went: a
+   * mode that flips sign between iterations (light ringing between two close facing surfaces)
+   * would grow under it; those texels take the plain step. */
+  vec4 last = imageLoad(delta_image, px);
+  if (blend > 1.0 && !(last.w > 0.5 && dot(step, last.rgb) > 0.0)) {
+    blend = 1.0;
+  }
+  imageStore(delta_image, px, vec4(step, 1.0));
+  imageStore(out_image, px, vec4(max(prev + blend * step, vec3(0.0)), wsum > 0.0 ? 1.0 : 0.5));
 }
