@@ -3,8 +3,15 @@
  * Resources (declared by the pass's GPUShaderCreateInfo, see gpu_shaders/resources.py):
  *   sampler3D  sdf_atlas        R8: every kept brick, 8^3 texels per brick cell (packing.py)
  *   isampler2D sdf_indirection  R32I: all meshes' brick tables, one linear table in rows
- *   sampler2D  sdf_objects      RGBA32F: 8 texels per instance row (packing.py)
+ *   sampler2D  sdf_objects      RGBA32F: 9 texels per instance row (packing.py)
+ *   sampler2D  sdf_grid         RGBA32F: the object grid, cell -> (first entry, count, bound B)
+ *                               and the flat instance lists (object_grid.py has the layout)
  * Everything is read with texelFetch: trilinear filtering is done here, in float32, on the codes.
+ *
+ * sdf_scene visits only the instances its sample's grid cell lists (those within the margin M of
+ * the cell, nearest first), so a sample costs what is near it, not the whole scene; every other
+ * instance is at least the cell's B >= M away, so the value is min(listed, B) (exact wherever
+ * the full loop's is below M, a lower bound elsewhere: safe for sphere tracing).
  */
 
 #define SDF_BRICK 8
@@ -107,20 +114,28 @@ float sdf_object_world(int obj, vec3 pw, out float voxel_world)
   return sdf_mesh_local(obj, sdf_world_to_local(obj, pw)) * scale;
 }
 
-/* Scene distance: minimum over objects. voxel_world: voxel of the nearest object; nearest: its
- * index (-1 with no objects, distance 1e30). An object whose bounding sphere (texel 8) is
- * farther than the best distance so far is skipped: its value is at least that far. */
-float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
+/* Instances visited by this invocation's sdf_scene calls: sphere tests, full evaluations
+ * (tests/gpu/test_object_grid.py reads them; unused otherwise, so the compiler drops them). */
+int sdf_tests = 0;
+int sdf_visits = 0;
+
+/* Scene distance over every object: the minimum of their values. voxel_world: voxel of the
+ * nearest object; nearest: its index (-1 with no objects, distance 1e30). An object whose
+ * bounding sphere (texel 8) is farther than the best distance so far is skipped: its value is
+ * at least that far. O(objects): sdf_scene's fallback for a cell that lists too many. */
+float sdf_scene_all(vec3 pw, out float voxel_world, out int nearest)
 {
   float best = 1e30;
   voxel_world = 1.0;
   nearest = -1;
   int n = sdf_object_count();
   for (int i = 0; i < n; i++) {
+    sdf_tests++;
     vec4 sphere = sdf_object_texel(i, 8);
     if (length(pw - sphere.xyz) - sphere.w >= best) {
       continue;
     }
+    sdf_visits++;
     float h;
     float d = sdf_object_world(i, pw, h);
     if (d < best) {
@@ -128,6 +143,59 @@ float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
       voxel_world = h;
       nearest = i;
     }
+  }
+  return best;
+}
+
+vec4 sdf_grid_texel(int i)
+{
+  int width = textureSize(sdf_grid, 0).x;
+  return texelFetch(sdf_grid, ivec2(i % width, i / width), 0);
+}
+
+/* Scene distance through the object grid: the same contract as sdf_scene_all (voxel_world and
+ * nearest of the nearest listed instance; with none listed, nearest -1 and the scene's smallest
+ * voxel), the value min(listed instances, B'). A point outside the grid uses the cell of its
+ * projection q onto the grid box: every instance lies in the box, so an unlisted one is at least
+ * B' = sqrt(|pw - q|^2 + B^2) from pw (projection onto a convex set). A cell that lists more
+ * than the cap (count -1) runs the full loop. */
+float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
+{
+  vec4 g0 = sdf_grid_texel(0);
+  vec4 g1 = sdf_grid_texel(1);
+  ivec3 dims = ivec3(g1.xyz + 0.5);
+  vec3 lo = g0.xyz;
+  vec3 q = clamp(pw, lo, lo + vec3(dims) * g0.w);
+  ivec3 c = clamp(ivec3(floor((q - lo) / g0.w)), ivec3(0), dims - 1);
+  vec4 cell = sdf_grid_texel(3 + c.x + dims.x * (c.y + dims.y * c.z));
+  int count = int(round(cell.y));
+  if (count < 0) {
+    return sdf_scene_all(pw, voxel_world, nearest);
+  }
+  float best = 1e30;
+  voxel_world = sdf_grid_texel(2).y;
+  nearest = -1;
+  int first = int(cell.x + 0.5);
+  int list = int(g1.w + 0.5);
+  for (int k = 0; k < count; k++) {
+    int e = first + k;
+    int i = int(sdf_grid_texel(list + (e >> 2))[e & 3] + 0.5);
+    sdf_tests++;
+    vec4 sphere = sdf_object_texel(i, 8);
+    if (length(pw - sphere.xyz) - sphere.w >= best) {
+      continue;
+    }
+    sdf_visits++;
+    float h;
+    float d = sdf_object_world(i, pw, h);
+    if (d < best) {
+      best = d;
+      voxel_world = h;
+      nearest = i;
+    }
+  }
+  if (cell.z < 1e29) {
+    best = min(best, length(vec2(length(pw - q), cell.z)));
   }
   return best;
 }
