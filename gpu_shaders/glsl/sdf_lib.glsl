@@ -153,13 +153,14 @@ vec4 sdf_grid_texel(int i)
   return texelFetch(sdf_grid, ivec2(i % width, i / width), 0);
 }
 
-/* Scene distance through the object grid: the same contract as sdf_scene_all (voxel_world and
- * nearest of the nearest listed instance; with none listed, nearest -1 and the scene's smallest
- * voxel), the value min(listed instances, B'). A point outside the grid uses the cell of its
- * projection q onto the grid box: every instance lies in the box, so an unlisted one is at least
- * B' = sqrt(|pw - q|^2 + B^2) from pw (projection onto a convex set). A cell that lists more
- * than the cap (count -1) runs the full loop. */
-float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
+/* The object grid's part of sdf_scene: the minimum over the instances listed in pw's cell (1e30
+ * with none; voxel_world and nearest of that instance, else the scene's smallest voxel and -1),
+ * and `bound`, a lower bound of every unlisted instance's value: sqrt(|pw - q|^2 + B^2), q = pw
+ * clamped into the grid box (a point outside the grid uses the cell of q: every instance lies in
+ * the box, so an unlisted one is at least that far from pw, projection onto a convex set).
+ * Returns false for a cell that lists more than the cap (count -1): the caller runs the full loop. */
+bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int nearest,
+                    out float bound)
 {
   vec4 g0 = sdf_grid_texel(0);
   vec4 g1 = sdf_grid_texel(1);
@@ -169,12 +170,13 @@ float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
   ivec3 c = clamp(ivec3(floor((q - lo) / g0.w)), ivec3(0), dims - 1);
   vec4 cell = sdf_grid_texel(3 + c.x + dims.x * (c.y + dims.y * c.z));
   int count = int(round(cell.y));
-  if (count < 0) {
-    return sdf_scene_all(pw, voxel_world, nearest);
-  }
-  float best = 1e30;
+  best = 1e30;
   voxel_world = sdf_grid_texel(2).y;
   nearest = -1;
+  bound = 1e30;
+  if (count < 0) {
+    return false;
+  }
   int first = int(cell.x + 0.5);
   int list = int(g1.w + 0.5);
   for (int k = 0; k < count; k++) {
@@ -195,7 +197,32 @@ float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
     }
   }
   if (cell.z < 1e29) {
-    best = min(best, length(vec2(length(pw - q), cell.z)));
+    bound = length(vec2(length(pw - q), cell.z));
   }
-  return best;
+  return true;
+}
+
+/* Scene distance through the object grid, with sdf_scene_all's contract (voxel_world and nearest
+ * of the nearest listed instance; with none listed, the scene's smallest voxel and -1): the
+ * minimum of the listed instances and the unlisted ones' bound. Equal to sdf_scene_all wherever
+ * that is below the grid's margin M, a lower bound of it elsewhere (safe for sphere tracing). */
+float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
+{
+  float best, bound;
+  if (!sdf_scene_grid(pw, best, voxel_world, nearest, bound)) {
+    return sdf_scene_all(pw, voxel_world, nearest);
+  }
+  return min(best, bound);
+}
+
+/* sdf_scene, but equal to sdf_scene_all wherever that is below `reach` (the global SDF stores
+ * values up to its band, 4 of its voxels, which can be far beyond M): where the unlisted
+ * instances' bound would cut the value below reach, the full loop. */
+float sdf_scene_reach(vec3 pw, float reach, out float voxel_world, out int nearest)
+{
+  float best, bound;
+  if (!sdf_scene_grid(pw, best, voxel_world, nearest, bound) || bound < min(best, reach)) {
+    return sdf_scene_all(pw, voxel_world, nearest);
+  }
+  return min(best, bound);
 }
