@@ -5,13 +5,15 @@
  *   isampler2D sdf_indirection  R32I: all meshes' brick tables, one linear table in rows
  *   sampler2D  sdf_objects      RGBA32F: 9 texels per instance row (packing.py)
  *   sampler2D  sdf_grid         RGBA32F: the object grid, cell -> (first entry, count, bound B)
- *                               and the flat instance lists (object_grid.py has the layout)
+ *                               and the flat lists of (instance, distance to the cell), nearest
+ *                               first (object_grid.py has the layout)
  * Everything is read with texelFetch: trilinear filtering is done here, in float32, on the codes.
  *
  * sdf_scene visits only the instances its sample's grid cell lists (those within the margin M of
- * the cell, nearest first), so a sample costs what is near it, not the whole scene; every other
- * instance is at least the cell's B >= M away, so the value is min(listed, B) (exact wherever
- * the full loop's is below M, a lower bound elsewhere: safe for sphere tracing).
+ * the cell, nearest first, stopping at the first one farther than the best value so far), so a
+ * sample costs what is near it, not the whole scene; every other instance is at least the
+ * cell's B >= M away, so the value is min(listed, B) (exact wherever the full loop's is below
+ * M, a lower bound elsewhere: safe for sphere tracing). sdf_scene_all loops over every object.
  */
 
 #define SDF_BRICK 8
@@ -181,7 +183,12 @@ bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int near
   int list = int(g1.w + 0.5);
   for (int k = 0; k < count; k++) {
     int e = first + k;
-    int i = int(sdf_grid_texel(list + (e >> 2))[e & 3] + 0.5);
+    vec4 pair = sdf_grid_texel(list + (e >> 1));
+    vec2 entry = (e & 1) == 0 ? pair.xy : pair.zw;
+    if (entry.y >= best) {
+      break;      /* nearest first: this instance and every later one are at least this far */
+    }
+    int i = int(entry.x + 0.5);
     sdf_tests++;
     vec4 sphere = sdf_object_texel(i, 8);
     if (length(pw - sphere.xyz) - sphere.w >= best) {
