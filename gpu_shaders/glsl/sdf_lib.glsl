@@ -160,7 +160,7 @@ vec4 sdf_grid_texel(int i)
  * and `bound`, a lower bound of every unlisted instance's value: sqrt(|pw - q|^2 + B^2), q = pw
  * clamped into the grid box (a point outside the grid uses the cell of q: every instance lies in
  * the box, so an unlisted one is at least that far from pw, projection onto a convex set).
- * Returns false for a cell that lists more than the cap (count -1): the caller runs the full loop. */
+ * A cell that lists more than the cap (count -1) walks every object (bound 1e30): returns false. */
 bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int nearest,
                     out float bound)
 {
@@ -172,23 +172,27 @@ bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int near
   ivec3 c = clamp(ivec3(floor((q - lo) / g0.w)), ivec3(0), dims - 1);
   vec4 cell = sdf_grid_texel(3 + c.x + dims.x * (c.y + dims.y * c.z));
   int count = int(round(cell.y));
+  bool listed = count >= 0;
   best = 1e30;
-  voxel_world = sdf_grid_texel(2).y;
+  voxel_world = listed ? sdf_grid_texel(2).y : 1.0;
   nearest = -1;
-  bound = 1e30;
-  if (count < 0) {
-    return false;
-  }
+  bound = (listed && cell.z < 1e29) ? length(vec2(length(pw - q), cell.z)) : 1e30;
+  /* one loop for both cases (an overflowing cell walks every object in index order, as
+   * sdf_scene_all): every caller inlines this, and a second loop doubled the shaders' size */
+  int n = listed ? count : sdf_object_count();
   int first = int(cell.x + 0.5);
   int list = int(g1.w + 0.5);
-  for (int k = 0; k < count; k++) {
-    int e = first + k;
-    vec4 pair = sdf_grid_texel(list + (e >> 1));
-    vec2 entry = (e & 1) == 0 ? pair.xy : pair.zw;
-    if (entry.y >= best) {
-      break;      /* nearest first: this instance and every later one are at least this far */
+  for (int k = 0; k < n; k++) {
+    int i = k;
+    if (listed) {
+      int e = first + k;
+      vec4 pair = sdf_grid_texel(list + (e >> 1));
+      vec2 entry = (e & 1) == 0 ? pair.xy : pair.zw;
+      if (entry.y >= best) {
+        break;    /* nearest first: this instance and every later one are at least this far */
+      }
+      i = int(entry.x + 0.5);
     }
-    int i = int(entry.x + 0.5);
     sdf_tests++;
     vec4 sphere = sdf_object_texel(i, 8);
     if (length(pw - sphere.xyz) - sphere.w >= best) {
@@ -203,10 +207,7 @@ bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int near
       nearest = i;
     }
   }
-  if (cell.z < 1e29) {
-    bound = length(vec2(length(pw - q), cell.z));
-  }
-  return true;
+  return listed;
 }
 
 /* Scene distance through the object grid, with sdf_scene_all's contract (voxel_world and nearest
@@ -216,9 +217,7 @@ bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int near
 float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
 {
   float best, bound;
-  if (!sdf_scene_grid(pw, best, voxel_world, nearest, bound)) {
-    return sdf_scene_all(pw, voxel_world, nearest);
-  }
+  sdf_scene_grid(pw, best, voxel_world, nearest, bound);
   return min(best, bound);
 }
 
@@ -228,7 +227,7 @@ float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
 float sdf_scene_reach(vec3 pw, float reach, out float voxel_world, out int nearest)
 {
   float best, bound;
-  if (!sdf_scene_grid(pw, best, voxel_world, nearest, bound) || bound < min(best, reach)) {
+  if (sdf_scene_grid(pw, best, voxel_world, nearest, bound) && bound < min(best, reach)) {
     return sdf_scene_all(pw, voxel_world, nearest);
   }
   return min(best, bound);
