@@ -1,5 +1,10 @@
 """GPU textures of a scene bake's mip-0 SDFs (needs a GPU context: call from RenderEngine.render).
 
+Four textures, read by glsl/sdf_lib.glsl: the brick atlas, the indirection table, the object
+table and the object grid (object_grid.py: per world cell the instances a distance sample there
+must visit). The grid is built from the object table whenever that is uploaded (`set_objects`:
+the first upload, and every object move through scene_state.py), so the two always agree.
+
 Formats, measured on Mesa llvmpipe (GL 4.5) through Blender 5.0.1's `gpu` module:
 - the brick atlas is R8 (unorm) 3D, uploaded from a FLOAT Buffer of code / 255 (exact);
 - `gpu.types.GPUTexture(..., format='R32I', data=Buffer('FLOAT', ...))` is accepted but leaves the
@@ -16,6 +21,7 @@ from pathlib import Path
 import gpu
 import numpy as np
 
+from .object_grid import build_object_grid
 from .packing import OBJECT_TEXELS, PackedScene, pack_bake
 
 GLSL = Path(__file__).resolve().parent / "glsl"
@@ -78,7 +84,7 @@ def int_texture_2d(values: np.ndarray) -> "gpu.types.GPUTexture":
 
 
 class SceneResources:
-    """The three textures of a packed scene. `bind(shader)` sets the samplers sdf_lib.glsl reads."""
+    """The four textures of a packed scene. `bind(shader)` sets the samplers sdf_lib.glsl reads."""
 
     def __init__(self, packed: PackedScene):
         if not len(packed.objects):
@@ -89,10 +95,22 @@ class SceneResources:
         self.atlas = gpu.types.GPUTexture((ax, ay, az), format='R8',
                                           data=float_buffer(packed.atlas.astype(np.float32) / 255.0))
         self.indirection = int_texture_2d(packed.indirection)
-        n = len(packed.objects)
-        self.objects = gpu.types.GPUTexture((OBJECT_TEXELS, n), format='RGBA32F',
-                                            data=float_buffer(packed.objects))
+        self.set_objects(packed.objects)
         self.upload_seconds = time.perf_counter() - t0
+
+    def set_objects(self, rows: np.ndarray):
+        """Upload the object table rows [n, OBJECT_TEXELS, 4] and the object grid built from them."""
+        if not len(rows):
+            raise ValueError("the bake has no objects to trace")
+        t0 = time.perf_counter()
+        self.packed.objects = rows
+        self.objects = gpu.types.GPUTexture((OBJECT_TEXELS, len(rows)), format='RGBA32F',
+                                            data=float_buffer(rows))
+        texels, self.grid_info = build_object_grid(rows)
+        self.grid_shape = texels.shape
+        self.grid = gpu.types.GPUTexture((texels.shape[1], texels.shape[0]), format='RGBA32F',
+                                         data=float_buffer(texels))
+        self.grid_info["seconds"] = time.perf_counter() - t0
 
     @classmethod
     def from_bake(cls, bake, mip: int = 0) -> "SceneResources":
@@ -104,12 +122,14 @@ class SceneResources:
         info.sampler(first_slot, 'FLOAT_3D', 'sdf_atlas')
         info.sampler(first_slot + 1, 'INT_2D', 'sdf_indirection')
         info.sampler(first_slot + 2, 'FLOAT_2D', 'sdf_objects')
-        return first_slot + 3
+        info.sampler(first_slot + 3, 'FLOAT_2D', 'sdf_grid')
+        return first_slot + 4
 
     def bind(self, shader):
         shader.uniform_sampler('sdf_atlas', self.atlas)
         shader.uniform_sampler('sdf_indirection', self.indirection)
         shader.uniform_sampler('sdf_objects', self.objects)
+        shader.uniform_sampler('sdf_grid', self.grid)
 
     def stats(self) -> dict:
         """GPU bytes per texture, from the sizes and formats actually allocated."""
@@ -119,4 +139,5 @@ class SceneResources:
             "atlas": ax * ay * az * 1,                               # R8
             "indirection": width * rows * 4,                         # R32I
             "objects": OBJECT_TEXELS * len(self.packed.objects) * 16,  # RGBA32F
+            "object_grid": self.grid_shape[0] * self.grid_shape[1] * 16,  # RGBA32F
         }

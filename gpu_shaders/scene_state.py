@@ -12,7 +12,7 @@ engine instance keeps one for its lifetime, an F12 render makes its own, as Cycl
 and re-uploads only what changed:
     atlas + indirection (+ objects)   the set of baked mesh hashes changed (a re-bake that changed
                                       some mesh); a re-bake with the same meshes uploads nothing
-    objects                           an instance moved / appeared / vanished (transform edits)
+    objects (+ object grid)           an instance moved / appeared / vanished (transform edits)
     lights                            the light rows changed (rows and their RGBA32F texture)
     cards                             the instances' card hashes or the card atlas layout changed
                                       (surface_cache.SurfaceCache: card layers, tables, lighting)
@@ -159,20 +159,14 @@ class SceneState:
                                                   data=float_buffer(rows))
 
     def _upload_objects(self, bake, keys, mats):
-        """Rebuild only the object table texture from the packed offsets already on the GPU."""
-        import gpu
-
-        from .packing import OBJECT_TEXELS
-        from .resources import float_buffer
-
+        """Rebuild only the object table texture (and its object grid) from the packed offsets
+        already on the GPU."""
         packed = self.resources.packed
         rows = [instance_row(bake.meshes[key], mw, packed.indirection_offset[key])
                 for key, mw in zip(keys, mats)]
         if not rows:
             raise ValueError("the bake has no objects to trace")
-        packed.objects = np.stack(rows)
-        self.resources.objects = gpu.types.GPUTexture((OBJECT_TEXELS, len(rows)), format='RGBA32F',
-                                                      data=float_buffer(packed.objects))
+        self.resources.set_objects(np.stack(rows))     # and the object grid built from them
 
     def stats(self) -> dict:
         """GPU bytes per resource (resources.stats() plus the light rows)."""

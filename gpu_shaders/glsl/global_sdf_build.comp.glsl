@@ -9,6 +9,8 @@
  *   build_prev    xyz: the previous first cell, w > 0.5: scroll (only cells that were outside the
  *                 previous box are evaluated; the others keep their values)
  *   build_band    stored values are min(d, band): beyond the band only a conservative bound
+ * sdf_scene_reach: the object grid's value where it is exact below the band, else every object
+ * (in open space at the coarse levels, whose band reaches past the grid's margin).
  */
 void main()
 {
@@ -28,6 +30,6 @@ void main()
   vec3 p = (vec3(cell) + 0.5) * build_origin.w;
   float h;
   int nearest;
-  float d = sdf_scene(p, h, nearest);
+  float d = sdf_scene_reach(p, build_band, h, nearest);    /* exact below the band */
   imageStore(gsdf_out, t, vec4(min(d, build_band), 0.0, 0.0, 0.0));
 }

@@ -3,8 +3,17 @@
  * Resources (declared by the pass's GPUShaderCreateInfo, see gpu_shaders/resources.py):
  *   sampler3D  sdf_atlas        R8: every kept brick, 8^3 texels per brick cell (packing.py)
  *   isampler2D sdf_indirection  R32I: all meshes' brick tables, one linear table in rows
- *   sampler2D  sdf_objects      RGBA32F: 8 texels per instance row (packing.py)
+ *   sampler2D  sdf_objects      RGBA32F: 9 texels per instance row (packing.py)
+ *   sampler2D  sdf_grid         RGBA32F: the object grid, cell -> (first entry, count, bound B)
+ *                               and the flat lists of (instance, distance to the cell), nearest
+ *                               first (object_grid.py has the layout)
  * Everything is read with texelFetch: trilinear filtering is done here, in float32, on the codes.
+ *
+ * sdf_scene visits only the instances its sample's grid cell lists (those within the margin M of
+ * the cell, nearest first, stopping at the first one farther than the best value so far), so a
+ * sample costs what is near it, not the whole scene; every other instance is at least the
+ * cell's B >= M away, so the value is min(listed, B) (exact wherever the full loop's is below
+ * M, a lower bound elsewhere: safe for sphere tracing). sdf_scene_all loops over every object.
  */
 
 #define SDF_BRICK 8
@@ -107,20 +116,28 @@ float sdf_object_world(int obj, vec3 pw, out float voxel_world)
   return sdf_mesh_local(obj, sdf_world_to_local(obj, pw)) * scale;
 }
 
-/* Scene distance: minimum over objects. voxel_world: voxel of the nearest object; nearest: its
- * index (-1 with no objects, distance 1e30). An object whose bounding sphere (texel 8) is
- * farther than the best distance so far is skipped: its value is at least that far. */
-float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
+/* Instances visited by this invocation's sdf_scene calls: sphere tests, full evaluations
+ * (tests/gpu/test_object_grid.py reads them; unused otherwise, so the compiler drops them). */
+int sdf_tests = 0;
+int sdf_visits = 0;
+
+/* Scene distance over every object: the minimum of their values. voxel_world: voxel of the
+ * nearest object; nearest: its index (-1 with no objects, distance 1e30). An object whose
+ * bounding sphere (texel 8) is farther than the best distance so far is skipped: its value is
+ * at least that far. O(objects): sdf_scene's fallback for a cell that lists too many. */
+float sdf_scene_all(vec3 pw, out float voxel_world, out int nearest)
 {
   float best = 1e30;
   voxel_world = 1.0;
   nearest = -1;
   int n = sdf_object_count();
   for (int i = 0; i < n; i++) {
+    sdf_tests++;
     vec4 sphere = sdf_object_texel(i, 8);
     if (length(pw - sphere.xyz) - sphere.w >= best) {
       continue;
     }
+    sdf_visits++;
     float h;
     float d = sdf_object_world(i, pw, h);
     if (d < best) {
@@ -130,4 +147,88 @@ float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
     }
   }
   return best;
+}
+
+vec4 sdf_grid_texel(int i)
+{
+  int width = textureSize(sdf_grid, 0).x;
+  return texelFetch(sdf_grid, ivec2(i % width, i / width), 0);
+}
+
+/* The object grid's part of sdf_scene: the minimum over the instances listed in pw's cell (1e30
+ * with none; voxel_world and nearest of that instance, else the scene's smallest voxel and -1),
+ * and `bound`, a lower bound of every unlisted instance's value: sqrt(|pw - q|^2 + B^2), q = pw
+ * clamped into the grid box (a point outside the grid uses the cell of q: every instance lies in
+ * the box, so an unlisted one is at least that far from pw, projection onto a convex set).
+ * A cell that lists more than the cap (count -1) walks every object (bound 1e30): returns false. */
+bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int nearest,
+                    out float bound)
+{
+  vec4 g0 = sdf_grid_texel(0);
+  vec4 g1 = sdf_grid_texel(1);
+  ivec3 dims = ivec3(g1.xyz + 0.5);
+  vec3 lo = g0.xyz;
+  vec3 q = clamp(pw, lo, lo + vec3(dims) * g0.w);
+  ivec3 c = clamp(ivec3(floor((q - lo) / g0.w)), ivec3(0), dims - 1);
+  vec4 cell = sdf_grid_texel(3 + c.x + dims.x * (c.y + dims.y * c.z));
+  int count = int(round(cell.y));
+  bool listed = count >= 0;
+  best = 1e30;
+  voxel_world = listed ? sdf_grid_texel(2).y : 1.0;
+  nearest = -1;
+  bound = (listed && cell.z < 1e29) ? length(vec2(length(pw - q), cell.z)) : 1e30;
+  /* one loop for both cases (an overflowing cell walks every object in index order, as
+   * sdf_scene_all): every caller inlines this, and a second loop doubled the shaders' size */
+  int n = listed ? count : sdf_object_count();
+  int first = int(cell.x + 0.5);
+  int list = int(g1.w + 0.5);
+  for (int k = 0; k < n; k++) {
+    int i = k;
+    if (listed) {
+      int e = first + k;
+      vec4 pair = sdf_grid_texel(list + (e >> 1));
+      vec2 entry = (e & 1) == 0 ? pair.xy : pair.zw;
+      if (entry.y >= best) {
+        break;    /* nearest first: this instance and every later one are at least this far */
+      }
+      i = int(entry.x + 0.5);
+    }
+    sdf_tests++;
+    vec4 sphere = sdf_object_texel(i, 8);
+    if (length(pw - sphere.xyz) - sphere.w >= best) {
+      continue;
+    }
+    sdf_visits++;
+    float h;
+    float d = sdf_object_world(i, pw, h);
+    if (d < best) {
+      best = d;
+      voxel_world = h;
+      nearest = i;
+    }
+  }
+  return listed;
+}
+
+/* Scene distance through the object grid, with sdf_scene_all's contract (voxel_world and nearest
+ * of the nearest listed instance; with none listed, the scene's smallest voxel and -1): the
+ * minimum of the listed instances and the unlisted ones' bound. Equal to sdf_scene_all wherever
+ * that is below the grid's margin M, a lower bound of it elsewhere (safe for sphere tracing). */
+float sdf_scene(vec3 pw, out float voxel_world, out int nearest)
+{
+  float best, bound;
+  sdf_scene_grid(pw, best, voxel_world, nearest, bound);
+  return min(best, bound);
+}
+
+/* sdf_scene, but equal to sdf_scene_all wherever that is below `reach` (the global SDF stores
+ * values up to its band, 4 of its voxels, which can be far beyond M): where the unlisted
+ * instances' bound would cut the value below reach, the full loop. */
+float sdf_scene_reach(vec3 pw, float reach, out float voxel_world, out int nearest)
+{
+  float best, bound;
+  if (sdf_scene_grid(pw, best, voxel_world, nearest, bound) && bound < min(best, reach)) {
+    return sdf_scene_all(pw, voxel_world, nearest);
+  }
+  return min(best, bound);
 }

@@ -1,0 +1,170 @@
+"""The object grid: which instances a scene distance sample must visit (numpy only, no bpy, no gpu).
+
+Why: sdf_scene (glsl/sdf_lib.glsl) used to test every instance at every sample, so every shadow
+cone, ray step and visibility test cost O(objects) (bench/object_scaling.py, GI Off, 128 px:
+a still viewport frame of 1,000 icospheres took 70x that of 10, all of it the direct light). Lumen culls objects to a grid before it traces mesh SDFs; so
+does this: a uniform grid of cubic cells over the instances' world bounds lists, per cell, the
+instances that come within the margin M of the cell, and sdf_scene visits only that list.
+
+Per instance the world bounds are its bounding sphere (object row texel 8) and the world AABB of
+its SDF volume (not the mesh bounds: inside the volume a value can be the clamped band, less
+than the distance to the bounds; packing.py); its distance to a cell box is the larger of the
+two gaps, and with a uniform scale its value anywhere in the cell is at least that. A cell stores
+  - its list, nearest first, each entry with its distance to the cell: sdf_scene stops at the
+    first entry at least as far as the best value so far (every later one is farther still);
+  - B, a lower bound of every unlisted instance's distance to the cell: the nearest unlisted one
+    within the reach R = REACH_MARGINS x M, else R (1e30 when every instance is listed). B >= M.
+sdf_scene returns min(listed distances, sqrt(|p - q|^2 + B^2)), q = p clamped into the grid box
+(the cell of q is used for a p outside the grid: every instance lies inside the box, so from p it
+is at least that far; for p inside, q = p). Where the full loop's value is below M both agree;
+sdf_scene_reach (the global SDF's build) runs the full loop where the bound would cut the value
+below its reach. A cell listing more than CELL_CAP instances stores count -1: sdf_scene runs the full loop there.
+
+Sizes: cubic cells, at most GRID_MAX = 32 per axis (32^3 = 32768 cells, 0.5 MiB of RGBA32F):
+the grid is rebuilt whenever the object table is (an object moved), so its build must stay tens
+of milliseconds (about 60 ms of CPU for 1,000 instances in 32 x 32 x 1 cells); 64^3 would be 8x the cells and pairs for lists that are only shorter in scenes
+denser than one object per cell. M = one cell edge (at least 4 voxels of the coarsest object, so
+a clamped value never reads as "near a surface" to the thin-wall and shell rules).
+
+Texture layout (`grid`: float32 [rows, GRID_WIDTH, 4], uploaded as one RGBA32F 2D texture,
+texel i at (i % GRID_WIDTH, i // GRID_WIDTH)):
+  texel 0: (grid origin xyz, cell edge)
+  texel 1: (cells per axis xyz, first list texel)
+  texel 2: (M, voxel for samples with no listed instance, list entries, CELL_CAP)
+  texel 3 + x + nx (y + ny z): cell (first list entry, count or -1, B, 0)
+  list: (instance index, its distance to the cell) pairs, 2 per texel (entry e in texel
+        first_list + e // 2, channels 2 (e % 2) and 2 (e % 2) + 1).
+Integers are exact in float32 below 2^24 (checked).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .packing import BRICK
+
+GRID_MAX = 32
+GRID_WIDTH = 1024
+CELL_CAP = 64
+REACH_MARGINS = 4.0
+HEADER_TEXELS = 3
+FAR = 1e30
+PAIR_CHUNK = 1 << 22      # (instance, cell) candidate pairs per numpy batch (memory bound)
+
+
+def instance_bounds(objects: np.ndarray):
+    """World bounds of each object-table row: (valid, sphere centre, radius, aabb lo, aabb hi,
+    world voxel). Parked rows (packing.PARKED) are not valid: no sample ever visits them."""
+    objs = np.asarray(objects, np.float64)
+    sphere = objs[:, 8]
+    valid = np.isfinite(objs).all(axis=(1, 2)) & (np.abs(sphere[:, :3]).max(axis=1) < 1e29)
+    w2l = objs[:, 0:4, :].copy()
+    w2l[~valid] = np.eye(4)
+    l2w = np.linalg.inv(w2l)
+    lo_l = objs[:, 4, :3]                                   # the SDF volume (as texel 8's sphere)
+    hi_l = lo_l + objs[:, 5, :3] * (BRICK - 1) * objs[:, 4, 3:4]
+    c = np.einsum("nij,nj->ni", l2w[:, :3, :3], (lo_l + hi_l) / 2) + l2w[:, :3, 3]
+    e = np.einsum("nij,nj->ni", np.abs(l2w[:, :3, :3]), np.abs(hi_l - lo_l) / 2)
+    voxel = objs[:, 4, 3] * objs[:, 7, 3]
+    return valid, sphere[:, :3], sphere[:, 3], c - e, c + e, voxel
+
+
+def _pairs(lo_idx, hi_idx):
+    """Every (instance, cell xyz) with cell in the instance's inclusive index box, vectorised."""
+    span = hi_idx - lo_idx + 1
+    total = span.prod(axis=1)
+    inst = np.repeat(np.arange(len(span)), total)
+    k = np.arange(total.sum()) - np.repeat(np.cumsum(total) - total, total)
+    sx, sy = span[inst, 0], span[inst, 1]
+    xyz = np.stack([k % sx, (k // sx) % sy, k // (sx * sy)], axis=1) + lo_idx[inst]
+    return inst, xyz
+
+
+def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = CELL_CAP,
+                      width: int = GRID_WIDTH) -> tuple:
+    """The grid texture's texels for the object table `objects` [n, OBJECT_TEXELS, 4];
+    returns (texels float32 [rows, width, 4], info dict: dims, cell, margin, entries, overflow,
+    mean / max count)."""
+    valid, centre, radius, alo, ahi, voxel = instance_bounds(objects)
+    idx = np.flatnonzero(valid)
+    if len(idx):
+        lo, hi = alo[idx].min(axis=0), ahi[idx].max(axis=0)
+        cell = max(float((hi - lo).max()) / grid_max, 1e-4)
+        dims = np.clip(np.ceil((hi - lo) / cell - 1e-9).astype(np.int64), 1, grid_max)
+        margin = max(cell, 4.0 * float(voxel[idx].max()))
+        fallback_voxel = float(voxel[idx].min())
+    else:
+        lo, cell, dims, margin, fallback_voxel = np.zeros(3), 1.0, np.ones(3, np.int64), 1.0, 1.0
+    ncells = int(dims.prod())
+    reach = REACH_MARGINS * margin
+    bound = np.full(ncells, FAR)
+    in_reach = np.zeros(ncells, np.int64)
+    cells_l, insts_l, dists_l = [], [], []
+    # candidate cells of each instance: its AABB grown by the reach, clipped to the grid
+    cl = np.clip(np.floor((alo[idx] - reach - lo) / cell), 0, dims - 1).astype(np.int64)
+    ch = np.clip(np.floor((ahi[idx] + reach - lo) / cell), 0, dims - 1).astype(np.int64)
+    per = (ch - cl + 1).prod(axis=1)
+    ends = np.cumsum(per)
+    starts = np.searchsorted(ends, np.arange(0, int(ends[-1]) if len(ends) else 0, PAIR_CHUNK),
+                             side="right")
+    bounds_at = list(starts) + [len(idx)]
+    for a, b in zip(bounds_at[:-1], bounds_at[1:]):          # batches of instances, not one each
+        if b <= a:
+            continue
+        k, xyz = _pairs(cl[a:b], ch[a:b])
+        inst = idx[a:b][k]
+        clo = lo + xyz * cell
+        chi = clo + cell
+        gap = np.linalg.norm(np.maximum(np.maximum(clo - ahi[inst], alo[inst] - chi), 0.0), axis=1)
+        sph = np.linalg.norm(np.maximum(np.maximum(clo - centre[inst], centre[inst] - chi), 0.0),
+                             axis=1) - radius[inst]
+        d = np.maximum(gap, sph)
+        c = xyz[:, 0] + dims[0] * (xyz[:, 1] + dims[1] * xyz[:, 2])
+        near = d < reach
+        in_reach += np.bincount(c[near], minlength=ncells)
+        far = near & (d >= margin)
+        cf, df = c[far], d[far]
+        o = np.lexsort((df, cf))
+        cf, df = cf[o], df[o]
+        head = np.r_[True, cf[1:] != cf[:-1]] if len(cf) else np.zeros(0, bool)
+        bound[cf[head]] = np.minimum(bound[cf[head]], df[head])     # each cell's nearest
+        listed = d < margin
+        cells_l.append(c[listed])
+        insts_l.append(inst[listed])
+        dists_l.append(d[listed])
+    cells = np.concatenate(cells_l) if cells_l else np.zeros(0, np.int64)
+    insts = np.concatenate(insts_l) if insts_l else np.zeros(0, np.int64)
+    dists = np.concatenate(dists_l) if dists_l else np.zeros(0)
+    # instances beyond the reach of a cell exist where not all of them were within it
+    bound = np.where(in_reach < len(idx), np.minimum(bound, reach), bound)
+    counts = np.bincount(cells, minlength=ncells)
+    over = counts > cap
+    keep = ~over[cells]
+    cells, insts, dists = cells[keep], insts[keep], dists[keep]
+    order = np.lexsort((insts, dists, cells))                 # by cell, nearest first
+    cells, insts, dists = cells[order], insts[order], dists[order]
+    kept = np.bincount(cells, minlength=ncells)
+    first = np.cumsum(kept) - kept
+    entries = len(insts)
+    list_texels = -(-entries // 2)
+    total = HEADER_TEXELS + ncells + list_texels
+    if total * 4 >= 1 << 24 or len(objects) >= 1 << 24:
+        raise ValueError(f"object grid of {total} texels: beyond exact float integers")
+    rows = -(-total // width)
+    tex = np.zeros((rows * width, 4), np.float32)
+    first_list = HEADER_TEXELS + ncells
+    tex[0] = (*lo, cell)
+    tex[1] = (*dims, first_list)
+    tex[2] = (margin, fallback_voxel, entries, cap)
+    body = tex[HEADER_TEXELS:HEADER_TEXELS + ncells]
+    body[:, 0] = first
+    body[:, 1] = np.where(over, -1, kept)
+    body[:, 2] = bound
+    flat = np.full((list_texels * 2, 2), -1.0, np.float32)
+    flat[:entries, 0] = insts
+    # rounded down, so that float32 never lets the loop stop before an instance that matters
+    flat[:entries, 1] = np.maximum(dists * (1.0 - 1e-6) - 1e-6, 0.0)
+    tex[first_list:first_list + list_texels] = flat.reshape(-1, 4)
+    info = dict(dims=tuple(int(v) for v in dims), cell=cell, margin=margin, entries=entries,
+                overflow=int(over.sum()), mean_count=float(kept.mean()) if ncells else 0.0,
+                max_count=int(counts.max()) if ncells else 0)
+    return tex.reshape(rows, width, 4), info
