@@ -151,7 +151,7 @@ def rel_mse(ours, ref):
 def renders(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("direct_light")
     start = time.perf_counter()
-    run = run_python(SNIPPET, tmp, timeout=150)
+    run = run_python(SNIPPET, tmp, timeout=600)
     assert run.returncode == 0, run.explain()
     out = {"tmp": tmp, "result": run.result, "seconds": time.perf_counter() - start}
     for kind in LIGHTS:
