@@ -27,7 +27,6 @@ from __future__ import annotations
 import numpy as np
 
 from .packing import instance_row, singular
-from .direct_light import Progressive
 from .sky_light import SkyLight
 
 try:                                   # inside the extension package
@@ -85,6 +84,8 @@ class SceneState:
         self.gi_view_key = None      # camera + size of the probes' history
         self.gi_sky = None           # key of the sky maps the GI history was made with
         self.sky = SkyLight()        # the world's maps on the GPU (uploaded when they change)
+        from .direct_light import Progressive   # (imports gpu: here, so plan() stays numpy-only)
+
         self.direct = Progressive()  # the viewport's direct light, spread over redraws
         self.epoch = 0               # depsgraph updates seen (engine.view_update) and syncs
                                      # with changes: what the progressive direct light keys on
