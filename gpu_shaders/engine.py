@@ -39,7 +39,8 @@ writes; the viewport adds one GI iteration per redraw to its history, draws the 
 texture as it is on the GPU (no read-back) through Blender's display transform, says
 "refining n/N" until the history is full and asks for redraws until then. `view_update`
 reads depsgraph.updates into LAST_VIEW_UPDATE, marks the objects, meshes, materials and images
-it names for the staleness check and the extraction cache to read again, and tags a redraw. Compiled passes are cached
+it names for the staleness check and the extraction cache to read again, bumps the state's
+epoch (the progressive direct light starts again) and tags a redraw. Compiled passes are cached
 per process and freed at exit before Blender's GPU module (gpu_shaders.free_shaders).
 
 It works headless: Blender gives a RenderEngine with bl_use_gpu_context a GPU context in
@@ -288,7 +289,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         LAST_RENDER["shown"] = img
         return Frame({}, img)
     gi_cfg = gi_settings.from_scene(engine_settings(scene), viewport=not final)
-    method, method_notes = gi_methods.from_scene(engine_settings(scene))   # LUMEN, SSGI or RSM
+    method, method_notes = gi_methods.from_scene(engine_settings(scene))   # gi_methods.METHODS
     sky = state.sky
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
     if state.mesh_batches is None:
