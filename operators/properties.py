@@ -57,6 +57,13 @@ GI_METHOD_ITEMS = (
      "cones' sampling leak light"))
 
 
+# Blender 5.0 warns on every set of a path property that is not declared blend-relative ('//');
+# Blender 4.2 has no such option and refuses to register a property that names it.
+_BLEND_RELATIVE = ({'PATH_SUPPORTS_BLEND_RELATIVE'}
+                   if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties
+                   else set())
+
+
 class LumenBakeSettings(bpy.types.PropertyGroup):
     """Inputs of the bake (`scene.lumen.bake`): shape and surface-lighting detail, cache folder."""
     __slots__ = ()   # Blender 5 warns about property groups that accept arbitrary attributes
@@ -90,7 +97,7 @@ class LumenBakeSettings(bpy.types.PropertyGroup):
         description="Where the bake is written and read from. // is the .blend file's folder and "
                     "{scene} this scene's name, so by default each scene of the file keeps its "
                     "own bake",
-        default=DEFAULT_CACHE_DIR, subtype='DIR_PATH', options={'PATH_SUPPORTS_BLEND_RELATIVE'})
+        default=DEFAULT_CACHE_DIR, subtype='DIR_PATH', options=_BLEND_RELATIVE)
 
 
 class LumenEngineSettings(bpy.types.PropertyGroup):
