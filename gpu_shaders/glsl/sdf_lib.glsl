@@ -121,6 +121,25 @@ float sdf_object_world(int obj, vec3 pw, out float voxel_world)
 int sdf_tests = 0;
 int sdf_visits = 0;
 
+/* One instance's part of a scene minimum: skipped when its bounding sphere (texel 8) is no
+ * nearer than `best` (its value is at least that far), else its value taken where smaller. */
+void sdf_visit(int i, vec3 pw, inout float best, inout float voxel_world, inout int nearest)
+{
+  sdf_tests++;
+  vec4 sphere = sdf_object_texel(i, 8);
+  if (length(pw - sphere.xyz) - sphere.w >= best) {
+    return;
+  }
+  sdf_visits++;
+  float h;
+  float d = sdf_object_world(i, pw, h);
+  if (d < best) {
+    best = d;
+    voxel_world = h;
+    nearest = i;
+  }
+}
+
 /* Scene distance over every object: the minimum of their values. voxel_world: voxel of the
  * nearest object; nearest: its index (-1 with no objects, distance 1e30). An object whose
  * bounding sphere (texel 8) is farther than the best distance so far is skipped: its value is
@@ -132,19 +151,7 @@ float sdf_scene_all(vec3 pw, out float voxel_world, out int nearest)
   nearest = -1;
   int n = sdf_object_count();
   for (int i = 0; i < n; i++) {
-    sdf_tests++;
-    vec4 sphere = sdf_object_texel(i, 8);
-    if (length(pw - sphere.xyz) - sphere.w >= best) {
-      continue;
-    }
-    sdf_visits++;
-    float h;
-    float d = sdf_object_world(i, pw, h);
-    if (d < best) {
-      best = d;
-      voxel_world = h;
-      nearest = i;
-    }
+    sdf_visit(i, pw, best, voxel_world, nearest);
   }
   return best;
 }
@@ -193,19 +200,7 @@ bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int near
       }
       i = int(entry.x + 0.5);
     }
-    sdf_tests++;
-    vec4 sphere = sdf_object_texel(i, 8);
-    if (length(pw - sphere.xyz) - sphere.w >= best) {
-      continue;
-    }
-    sdf_visits++;
-    float h;
-    float d = sdf_object_world(i, pw, h);
-    if (d < best) {
-      best = d;
-      voxel_world = h;
-      nearest = i;
-    }
+    sdf_visit(i, pw, best, voxel_world, nearest);
   }
   return listed;
 }
