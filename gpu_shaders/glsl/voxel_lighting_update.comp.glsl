@@ -24,18 +24,7 @@ float vl_scene(vec3 pw, out float voxel_world, out int nearest)
   voxel_world = 1.0;
   nearest = -1;
   for (int j = 0; j < vl_count; j++) {
-    int i = vl_objs[j];
-    vec4 sphere = sdf_object_texel(i, 8);
-    if (length(pw - sphere.xyz) - sphere.w >= best) {
-      continue;
-    }
-    float h;
-    float d = sdf_object_world(i, pw, h);
-    if (d < best) {
-      best = d;
-      voxel_world = h;
-      nearest = i;
-    }
+    sdf_visit(vl_objs[j], pw, best, voxel_world, nearest);
   }
   return best;
 }
