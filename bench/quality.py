@@ -3,7 +3,7 @@
     .venv/bin/python bench/quality.py [--size 256] [--scenes cornell,window,thin]
         [--cycles-samples 1024] [--engines cycles_ref,cycles_4spp_oidn,eevee,eevee_rt,
         eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_lpv,lumen_vxgi,lumen_off,
-        lumen_rc] [--out out/quality]
+        lumen_rc,lumen_noscreen] [--out out/quality]
         [--quick] [--verbose]
 
 Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornell` (area light
@@ -35,6 +35,8 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
     lumen_off         GI Off (gi_quality='OFF'): direct light and the SDF-occluded sky only, the
                       floor every GI method must beat
     lumen_rc          lumen with the world radiance cache on (gpu_shaders/radiance_cache.py)
+    lumen_noscreen    lumen without its first trace on the screen (screen_trace off): every
+                      probe ray on the SDFs from its origin
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -75,7 +77,7 @@ import quality_scenes  # noqa: E402
 
 ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
            "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_lpv", "lumen_vxgi",
-           "lumen_off", "lumen_rc")
+           "lumen_off", "lumen_rc", "lumen_noscreen")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -551,7 +553,8 @@ RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "e
            "lumen_lpv": lambda ctx: run_lumen(ctx, LUMEN_LPV_SETTINGS),
            "lumen_vxgi": lambda ctx: run_lumen(ctx, LUMEN_VXGI_SETTINGS),
            "lumen_off": lambda ctx: run_lumen(ctx, LUMEN_OFF_SETTINGS),
-           "lumen_rc": run_lumen_rc}
+           "lumen_rc": run_lumen_rc,
+           "lumen_noscreen": lambda ctx: run_lumen(ctx, (("screen_trace", False),))}
 
 
 # Metrics and images ----------------------------------------------------------------------------

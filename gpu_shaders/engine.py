@@ -25,7 +25,9 @@ card; magenta where no card sees the point), SC_UPDATES (update heat of the budg
 this frame to red 8+ frames ago, magenta not yet); PROBES (the probe radiance atlas) and
 PROBE_FALLBACK (green: interpolated from probes, red: traced per pixel); VOXEL_LIGHTING;
 RADIANCE_CACHE (what the world radiance cache gives a ray along the normal; magenta: no traced
-probe there; the cache must be on: GISettings.radiance_cache, else Combined).
+probe there; the cache must be on: GISettings.radiance_cache, else Combined); TRACE_METHOD (the
+share of each pixel's rays served by the screen trace (red), the mesh SDFs (green), the global
+SDF (blue): GI Method Lumen with the screen trace on, else Combined).
 
 GPU inputs live in a scene_state.SceneState owned by the engine instance, as Cycles' session
 is: a viewport's engine keeps one for its lifetime, and a redraw re-uploads only what changed
@@ -67,7 +69,7 @@ VIEW_PROPERTY = "lumen_preview_view"       # legacy: "DEPTH" selects the DEPTH d
 DEBUG_VIEWS = ("COMBINED", "DEPTH", "STEPS", "NORMAL", "ALBEDO", "DIRECT", "INDIRECT", "HYBRID",
                "SC_FINAL", "SC_ALBEDO", "SC_NORMAL", "SC_DIRECT", "SC_INDIRECT", "CARDS",
                "SC_UPDATES", "PROBES",
-               "PROBE_FALLBACK", "VOXEL_LIGHTING", "RADIANCE_CACHE")
+               "PROBE_FALLBACK", "VOXEL_LIGHTING", "RADIANCE_CACHE", "TRACE_METHOD")
 TRACE_VIEWS = ("DEPTH", "STEPS", "HYBRID")
 CARD_VIEWS = {"SC_FINAL": "final", "SC_ALBEDO": "albedo", "SC_NORMAL": "normal",
               "SC_DIRECT": "direct", "SC_INDIRECT": "indirect", "CARDS": "cards",
@@ -320,7 +322,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
             gi_methods.release(state)
             gi_out = gi.indirect_light(state, gbuf, gi_cfg, view_key, cam_pos, sky,
                                        min(float(clip_end), 100.0), width, height, changes, final,
-                                       view_proj=view_proj)
+                                       view_proj=view_proj, direct=out["textures"]["direct"])
         else:
             gi_out = gi_methods.indirect_light(method, state, gbuf, objects, out["textures"],
                                                gi_cfg, view_key, view_proj, inv_vp, cam_pos, sky,
@@ -338,6 +340,11 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        gi_settings=gi_cfg.__dict__.copy())
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
             LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])
+        if view == "TRACE_METHOD" and getattr(state, "screen_trace", None) is not None:
+            LAST_RENDER["trace_method"] = state.screen_trace.method_image(
+                state.resources, state.global_sdf, state.surface_cache, sky,
+                state.voxel_lighting if gi_cfg.voxel_lighting else None,
+                min(float(clip_end), 100.0), frame=state.gi_frame)
     t5 = time.perf_counter()
     MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled),
                               **gi_methods.stats(state))
@@ -436,6 +443,8 @@ def _debug_image(view, state, gbuf, images, cam_pos, width, height, gi_cfg):
         shown = np.zeros((height, width, 4), np.float32)
         shown[..., 0] = (w == 0).astype(np.float32)
         shown[..., 1] = (w > 0).astype(np.float32)
+    elif view == "TRACE_METHOD" and "trace_method" in LAST_RENDER:
+        shown = LAST_RENDER["trace_method"]
     elif view == "VOXEL_LIGHTING" and getattr(state, "voxel_lighting", None) is not None:
         shown = state.voxel_lighting.view(state.global_sdf, gbuf, cam_pos, width, height)
         shown[shown[..., 3] < 0] = 0.0

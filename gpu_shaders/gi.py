@@ -10,6 +10,8 @@
                          the viewport relights a budget of tiles per frame by priority
                          (surface_cache_pages.py), F12 every tile
     screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py);
+                         with GISettings.screen_trace their rays walk the HZB first
+                         (screen_trace.py: HZB once per frame, the screen colour per iteration)
                          or another final gather passed as `gather` (GI Method VXGI: vxgi.py's
                          cones read the same voxel lighting)
                          with GISettings.radiance_cache the rays trace ~2 m and the world
@@ -71,13 +73,15 @@ def _probes(state, gi: GISettings, width: int, height: int):
 
 def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_max: float,
                    width: int, height: int, changes: set, final: bool, view_proj=None,
-                   gather=None) -> dict:
+                   gather=None, direct=None) -> dict:
     """Run the GI passes; returns {'texture': per-pixel E_indirect, 'timings': {...},
     'iterations': n, 'sc_tiles': surface-cache tiles relit (all iterations), 'sc_tiles_total',
     'converged': bool (viewport: probe history full and every tile updated `history` times)}.
     gather: the final gather in place of the screen probes (an object with ScreenProbes'
     history, frames, gather() and temporal(): vxgi.VXGI), so another method reuses this
-    pipeline's global SDF, surface cache and voxel lighting instead of duplicating it."""
+    pipeline's global SDF, surface cache and voxel lighting instead of duplicating it.
+    direct: the direct pass's E_direct / pi texture (the screen trace's colour; None: no screen
+    trace)."""
     t0 = time.perf_counter()
     res, cache = state.resources, state.surface_cache
     gsdf = _global_sdf(state, gi)
@@ -108,6 +112,13 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     cache.light_direct(res, state.light_texture, len(state.lights), tiles=tiles)
     t2 = time.perf_counter()
     timings = {"gsdf": 0.0, "voxel_lighting": 0.0, "sc_indirect": 0.0, "probes": 0.0}
+    screen = None
+    if gi.screen_trace and gather is None and gi.gather == "PROBES" and direct is not None \
+            and view_proj is not None:
+        from .screen_trace import ScreenTrace
+        screen = ScreenTrace(gbuf, view_proj, cam_pos, width, height, gi.screen_steps,
+                             gi.screen_thickness)
+    state.screen_trace = screen
     if final:
         schedule = gi.render_schedule()
     else:
@@ -149,8 +160,11 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 # (as the screen probes' own rays are: the same image quality); viewport: the
                 # budget, new probes first, exponential
                 rc = {}
+                if screen is not None:
+                    screen.light(res, cache, direct)
+                    rc["screen"] = screen
                 if rcache is not None:
-                    rc = dict(rcache=rcache, rc_budget=gi.rc_budget, rc_blend=0.25,
+                    rc.update(rcache=rcache, rc_budget=gi.rc_budget, rc_blend=0.25,
                               rc_retrace=gi.rc_retrace)
                     if final:
                         rc.update(rc_budget=rcache.capacity, rc_blend=1.0 / (gathered + 1),

@@ -54,6 +54,9 @@ class GISettings:
     rc_budget: int = 16            # radiance cache probes traced per viewport frame (new first)
     rc_retrace: int = 8            # of them, at most this many re-traced (least recent first)
     rc_capacity: int = 2048        # radiance cache probe slots
+    screen_trace: bool = True      # probe rays walk the HZB first (Lumen's first trace)
+    screen_steps: int = 50         # HZB cells per screen ray (the lecture's "HZB Max Step=50")
+    screen_thickness: float = 0.1  # metres a surface is assumed thick behind the depth buffer
 
     @property
     def enabled(self) -> bool:
@@ -102,4 +105,5 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
                     render_frames=int(getattr(s, "render_frames", d.render_frames)),
                     gather=str(getattr(s, "gi_gather", d.gather)),
                     voxel_lighting=bool(getattr(s, "voxel_lighting", d.voxel_lighting)),
-                    radiance_cache=bool(getattr(s, "radiance_cache", d.radiance_cache)), **extra)
+                    radiance_cache=bool(getattr(s, "radiance_cache", d.radiance_cache)),
+                    screen_trace=bool(getattr(s, "screen_trace", d.screen_trace)), **extra)

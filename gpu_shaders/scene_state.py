@@ -80,6 +80,7 @@ class SceneState:
         self.voxel_lighting = None   # voxel_lighting.VoxelLighting (gi.py, the clipmaps' voxels)
         self.probes = None           # screen_probes.ScreenProbes (gi.py, per image size)
         self.radiance_cache = None   # radiance_cache.RadianceCache (gi.py, when it is on)
+        self.screen_trace = None     # screen_trace.ScreenTrace of the last GI frame (gi.py)
         self.gi_frame = 0            # frames of GI run (jitter sequences, clipmap cadence)
         self.gi_view_key = None      # camera + size of the probes' history
         self.gi_sky = None           # key of the sky maps the GI history was made with
@@ -187,5 +188,7 @@ class SceneState:
             out.update(self.mesh_batches.stats())
         if self.radiance_cache is not None:
             out.update(self.radiance_cache.stats())
+        if self.screen_trace is not None:
+            out.update(self.screen_trace.stats())
         out.update(self.sky.stats())
         return out

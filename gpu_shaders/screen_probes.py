@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import compute, radiance_cache, voxel_lighting
+from . import compute, radiance_cache, screen_trace, voxel_lighting
 from .probe_math import hammersley
 
 GI_LIBS = (("sampling_lib.glsl", "octahedral_lib.glsl") + voxel_lighting.LIBS
@@ -49,12 +49,13 @@ class ScreenProbes:
 
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
                voxels=None, rcache=None, rc_budget: int = 0, rc_blend: float = 0.25,
-               rc_retrace=None):
+               rc_retrace=None, screen=None):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
         0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
         (None: refined on the mesh SDFs). rcache: radiance_cache.RadianceCache (None: off): rays
         trace ~2 m and take the far field from it, `rc_budget` cache probes traced (new first),
-        of them at most `rc_retrace` re-traced."""
+        of them at most `rc_retrace` re-traced. screen: screen_trace.ScreenTrace (None: off),
+        Lumen's first trace on the HZB before the SDFs."""
         gw, gh = self.grid
         r = self.res
         tile_j, ray_j = self.jitter(frame)
@@ -75,12 +76,14 @@ class ScreenProbes:
         compute.dispatch(sh, gw, gh)
 
         tex["radiance"] = compute.texture((gw * r, gh * r))
-        sh = compute.shader("screen_probe_trace", samplers=("probe_info", "probe_normal") + VL,
+        sh = compute.shader("screen_probe_trace",
+                            samplers=("probe_info", "probe_normal") + VL + screen_trace.SAMPLERS,
                             images=("out_image", ("rc_marks", 'R32F')),
-                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max'),
-                                  radiance_cache.CAMERA, ('INT', 'rc_frame')),
-                            libs=GI_LIBS + radiance_cache.MARK, scene=True, surface_cache=True,
-                            global_sdf=True)
+                            push=(screen_trace.PUSH[0], radiance_cache.CAMERA,
+                                  ('VEC2', 'ray_jitter'), ('INT', 'probe_res'), ('FLOAT', 't_max'),
+                                  ('INT', 'rc_frame'), screen_trace.PUSH[1]),
+                            libs=GI_LIBS + radiance_cache.MARK + screen_trace.LIBS, scene=True,
+                            surface_cache=True, global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
@@ -88,6 +91,10 @@ class ScreenProbes:
         sh.uniform_sampler("probe_normal", tex["normal"])
         sky.bind(sh)
         held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
+        if screen is not None:
+            screen.bind(sh)
+        else:
+            off = screen_trace.bind_off(sh, gbuf)  # noqa: F841 (held until the dispatch)
         sh.uniform_int("probe_res", r)
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.uniform_float("t_max", float(t_max))

@@ -30,6 +30,7 @@ import numpy as np
 from . import compute, hzb
 
 LIBS = ("sampling_lib.glsl", "mip_lib.glsl", "gbuffer_lib.glsl")
+TRACE_LIBS = LIBS + ("screen_trace_lib.glsl",)
 LEFT, STEPS, NONE = -1.0, -2.0, -3.0      # ssgi_trace's miss codes (the hits' w)
 
 
@@ -77,7 +78,7 @@ class SSGI:
         tex["hits"] = compute.texture((w * rays, h))
         sh = compute.shader("ssgi_trace", samplers=("gbuf_position", "gbuf_normal", "hzb"),
                             push=(('MAT4', 'view_proj'), ('VEC4', 'cam_tmax'),
-                                  ('IVEC4', 'counts'), ('FLOAT', 'thickness')), libs=LIBS)
+                                  ('IVEC4', 'counts'), ('FLOAT', 'thickness')), libs=TRACE_LIBS)
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
         sh.uniform_sampler("hzb", tex["hzb"])

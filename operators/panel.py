@@ -251,6 +251,7 @@ class RENDER_PT_lumen_gi_lumen(MethodPanel, bpy.types.Panel):
     def draw(self, context):
         layout, s = self.begin(context)
         layout.prop(s, "gi_gather")
+        layout.prop(s, "screen_trace")
         layout.prop(s, "radiance_cache")
 
 

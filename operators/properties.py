@@ -154,6 +154,12 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                     "kept between frames. Off by default: on llvmpipe it saves little time and "
                     "made two of three test scenes slightly worse",
         default=GI.radiance_cache)
+    screen_trace: BoolProperty(
+        name="Screen Trace",
+        description="Rays first look for what they hit in the image on screen, and only what "
+                    "they do not find there is traced through the scene's distance fields. "
+                    "Faster, with sharper bounced light from what the camera sees",
+        default=GI.screen_trace)
     ssgi_rays: IntProperty(
         name="SSGI Rays per Pixel",
         description="Rays each pixel sends per frame to find bounced light on screen. More is "
@@ -266,7 +272,10 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                 "hits read the surface cache)"),
                ('RADIANCE_CACHE', "Radiance Cache", "What the world radiance cache gives a ray "
                 "leaving each surface along its normal (magenta: no traced probe serves it; with "
-                "the cache off, Combined)")),
+                "the cache off, Combined)"),
+               ('TRACE_METHOD', "Trace Method", "Which trace served each pixel's rays: red the "
+                "screen, green the mesh distance fields, blue the global distance field, black "
+                "the sky (Lumen with Screen Trace on; else Combined)")),
         default='COMBINED')
 
 

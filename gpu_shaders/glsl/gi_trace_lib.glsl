@@ -13,7 +13,7 @@
  * guard looped over them again). A hit no voxel face serves reads the surface cache as a near hit
  * does. Without voxel lighting every object is searched. If no mesh is found the global trace
  * goes on.
- * gi_radiance: the light at the hit (the surface cache's final light on a mesh hit, the voxel
+ * gi_radiance(_from): the light at the hit (the surface cache's final light on a mesh hit, the voxel
  * lighting on a served global hit), sky_ray on a miss.
  */
 #define GI_GLOBAL_STEPS 96
@@ -29,15 +29,19 @@ float gi_thin_margin()
 }
 
 /* obj >= 0: a hit at t on mesh obj; obj = -1: a global-SDF hit at t served by voxel lighting,
- * whose radiance is voxel_L. */
-bool gi_trace_lit(vec3 o, vec3 dir, float tmax, out float t, out int obj, out vec3 voxel_L)
+ * whose radiance is voxel_L. The ray is traced from t_start (> 0 where something else, the
+ * screen trace, has shown [0, t_start] empty): on the mesh SDFs up to GSDF_MESH_SPLIT, then on
+ * the global SDF. */
+bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t, out int obj,
+                       out vec3 voxel_L)
 {
   voxel_L = vec3(0.0);
+  obj = -1;
   float split = min(GSDF_MESH_SPLIT, tmax);
-  if (gi_trace_mesh(o, dir, 0.0, split, t, obj)) {
+  if (t_start < split && gi_trace_mesh(o, dir, t_start, split, t, obj)) {
     return true;
   }
-  t = split;
+  t = max(split, t_start);
   float thin = gi_thin_margin();
   for (int i = 0; i < GI_GLOBAL_STEPS && t < tmax; i++) {
     int level;
@@ -74,6 +78,11 @@ bool gi_trace_lit(vec3 o, vec3 dir, float tmax, out float t, out int obj, out ve
   return false;
 }
 
+bool gi_trace_lit(vec3 o, vec3 dir, float tmax, out float t, out int obj, out vec3 voxel_L)
+{
+  return gi_trace_lit_from(o, dir, 0.0, tmax, t, obj, voxel_L);
+}
+
 /* The hit alone (obj -1: served by voxel lighting). */
 bool gi_trace(vec3 o, vec3 dir, float tmax, out float t, out int obj)
 {
@@ -84,11 +93,12 @@ bool gi_trace(vec3 o, vec3 dir, float tmax, out float t, out int obj)
 /* Radiance arriving at o from direction dir: the surface cache (or the voxel lighting) at the
  * first hit, sky on a miss. hit_t: the hit distance (tmax on a miss); weight: card weight (0 when
  * no card saw the hit; 1 on a voxel-lit hit). */
-vec3 gi_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out float weight)
+vec3 gi_radiance_from(vec3 o, vec3 dir, float t_start, float tmax, out float hit_t,
+                      out float weight)
 {
   int obj;
   vec3 voxel_L;
-  if (gi_trace_lit(o, dir, tmax, hit_t, obj, voxel_L)) {
+  if (gi_trace_lit_from(o, dir, t_start, tmax, hit_t, obj, voxel_L)) {
     if (obj < 0) {
       weight = 1.0;
       return voxel_L;
@@ -98,5 +108,10 @@ vec3 gi_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out float weight
   hit_t = tmax;
   weight = 1.0;
   return sky_ray(dir);
+}
+
+vec3 gi_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out float weight)
+{
+  return gi_radiance_from(o, dir, 0.0, tmax, hit_t, weight);
 }
 

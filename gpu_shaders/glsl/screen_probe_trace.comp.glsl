@@ -1,14 +1,15 @@
 /* Screen probes, tracing: one ray per octahedral texel of every probe (probe_res^2 per probe,
  * the whole sphere in world-space directions so that neighbours' texels match), through
- * gi_trace_lib.glsl (mesh SDFs near, global SDF far, the surface cache at hits, sky on a miss).
+ * lumen_trace_lib.glsl (the screen first if on, mesh SDFs near, global SDF far, the surface
+ * cache at hits, sky on a miss).
  * Directions are jittered inside their texel by ray_jitter (the same for every probe of a frame).
  * Rays start one voxel of the nearest object off the probe's surface along its normal.
  * With the world radiance cache on (rc_camera.w > 0, radiance_cache_layout_lib.glsl) a ray whose
  * origin lies in a cache level traces only rc_trace_distance (2 m at level 0): without a hit it
  * is flagged (alpha -2, radiance_cache_resolve fills it in) and marks the 8 cache cells around
  * its origin as used this frame (rc_frame), so that their probes are allocated and traced.
- * Inputs: probe_info, probe_normal; push constants probe_res, ray_jitter, t_max, rc_camera,
- * rc_frame; image rc_marks.
+ * Inputs: probe_info, probe_normal, screen_trace.SAMPLERS; push constants probe_res, ray_jitter,
+ * t_max, rc_camera, rc_frame, screen_trace.PUSH, screen_steps; image rc_marks.
  * Output out_image (probe atlas, probe (i, j) at texels [i*res, (i+1)*res) x [j*res, ...)):
  * radiance rgb, a = hit distance (t_max on a miss, -1 where there is no probe, -2 to resolve).
  */
@@ -34,8 +35,9 @@ void main()
   vec3 o = info.xyz + n * max(gi_object_voxel(max(obj, 0)), 1e-3);
   int k = rc_level(o);
   float tmax = k >= 0 ? min(rc_trace_distance(k), t_max) : t_max;
-  float t, w;
-  vec3 L = gi_radiance(o, dir, tmax, t, w);
+  float t;
+  int kind;
+  vec3 L = lumen_radiance(o, dir, tmax, t, kind);
   if (tmax < t_max && t >= tmax) {
     rc_mark(o, k, rc_frame);
     imageStore(out_image, tx, vec4(0.0, 0.0, 0.0, -2.0));

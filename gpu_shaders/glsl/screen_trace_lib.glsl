@@ -1,0 +1,137 @@
+/* Screen-space rays on the HZB (lecture 21, "Hierachical Tracing"; needs mip_lib.glsl,
+ * gbuffer_lib.glsl and the samplers hzb (MIN chain of window depths, hzb.py), gbuf_position,
+ * gbuf_normal). Used by SSGI's trace and by Lumen's first trace (screen probes).
+ *
+ * screen_trace walks o + t dir (t in [0, t_max]) as a straight line in (pixel x, pixel y, window
+ * depth):
+ *   a segment whose depth stays in front of its cell's MIN skips the cell and climbs a level;
+ *   otherwise it descends; at level 0 the segment inside the pixel is tested against the
+ *   pixel's surface plane (G-buffer position and normal): it hits where it crosses the plane
+ *   from in front, or if it entered the pixel behind the plane by at most `thickness` metres
+ *   (surfaces are assumed that thick: the depth buffer has no back faces); past that it walks
+ *   on behind the surface. (The plane and not the pixel's centre depth: at a grazing angle one
+ *   pixel spans a long stretch of its surface.)
+ * At most max_steps cells are visited (the lecture: 50). The world ray is clipped to the near and
+ * far planes, its screen line to the image.
+ * Returns the hit distance (>= 0; hit_px the pixel hit) or SCREEN_LEFT (left the screen, reached
+ * t_max or the far plane) or SCREEN_STEPS (out of steps).
+ * t_free: how far the ray is known to be empty, from the depth buffer alone: every cell it crossed
+ * from its start up to there it crossed in front of the nearest surface the cell shows (what the
+ * camera sees in front of a surface is empty). A world-space tracer can go on from there without
+ * missing anything (Lumen's screen trace then mesh SDF trace).
+ */
+#define SCREEN_LEFT -1.0
+#define SCREEN_STEPS -2.0
+
+vec3 screen_window(vec4 h, vec2 size)
+{
+  vec3 ndc = h.xyz / h.w;
+  return vec3((ndc.xy * 0.5 + 0.5) * size, ndc.z * 0.5 + 0.5);
+}
+
+float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, int max_steps,
+                   float thickness, out float t_free, out ivec2 hit_px)
+{
+  t_free = 0.0;
+  hit_px = ivec2(-1);
+  ivec2 size = textureSize(gbuf_position, 0);
+  vec4 h0 = view_proj * vec4(o, 1.0);
+  vec4 h1 = view_proj * vec4(o + dir * t_max, 1.0);
+  /* clip the world segment to the near (z + w >= 0) and far (w - z >= 0) planes */
+  float frac = 1.0;
+  float a0 = h0.z + h0.w, a1 = h1.z + h1.w;
+  if (a1 < 0.0) {
+    frac = min(frac, 0.999 * a0 / (a0 - a1));
+  }
+  float b0 = h0.w - h0.z, b1 = h1.w - h1.z;
+  if (b1 < 0.0) {
+    frac = min(frac, 0.999 * b0 / (b0 - b1));
+  }
+  float len = t_max * frac;
+  h1 = mix(h0, h1, frac);
+  vec3 s0 = screen_window(h0, vec2(size));
+  vec3 s1 = screen_window(h1, vec2(size));
+  vec3 d = s1 - s0;
+  float w0 = h0.w, w1 = h1.w;
+
+  /* where the screen line leaves the image */
+  float s_end = 1.0;
+  if (d.x > 0.0) {
+    s_end = min(s_end, (float(size.x) - s0.x) / d.x);
+  }
+  else if (d.x < 0.0) {
+    s_end = min(s_end, -s0.x / d.x);
+  }
+  if (d.y > 0.0) {
+    s_end = min(s_end, (float(size.y) - s0.y) / d.y);
+  }
+  else if (d.y < 0.0) {
+    s_end = min(s_end, -s0.y / d.y);
+  }
+  float pix_len = length(d.xy);
+  float eps = 1e-3 / max(pix_len, 1e-6);
+  vec2 inv_d = vec2(d.x != 0.0 ? 1.0 / d.x : 1e30, d.y != 0.0 ? 1.0 / d.y : 1e30);
+
+  int top = mip_count(size) - 1;
+  int level = 0;
+  float s = 0.0;
+  bool first = true;        /* the start pixel: leave it before testing anything */
+  bool free_so_far = true;  /* every cell crossed so far was crossed in front of its surface */
+  for (int i = 0; i < max_steps; i++) {
+    if (s >= s_end) {
+      break;
+    }
+    vec3 P = s0 + d * s;
+    ivec2 cell = ivec2(floor(clamp(P.xy, vec2(0.0), vec2(size) - 1e-3))) >> level;
+    float cs = float(1 << level);
+    vec2 lo = vec2(cell) * cs;
+    vec2 hi = lo + cs;
+    float sx = d.x > 0.0 ? (hi.x - s0.x) * inv_d.x : (d.x < 0.0 ? (lo.x - s0.x) * inv_d.x : 1e30);
+    float sy = d.y > 0.0 ? (hi.y - s0.y) * inv_d.y : (d.y < 0.0 ? (lo.y - s0.y) * inv_d.y : 1e30);
+    float s_exit = min(min(sx, sy), s_end);
+    float tb = len * (s_exit * w0 / ((1.0 - s_exit) * w1 + s_exit * w0));
+    if (first) {
+      first = false;
+      s = s_exit + eps;
+      continue;
+    }
+    float za = s0.z + d.z * s;
+    float zb = s0.z + d.z * s_exit;
+    ivec2 off, lsize;
+    mip_rect(level, size, off, lsize);
+    float zmin = texelFetch(hzb, off + cell, 0).x;
+    if (max(za, zb) < zmin) {
+      s = s_exit + eps;
+      level = min(level + 1, top);
+      if (free_so_far) {
+        t_free = tb;
+      }
+      continue;
+    }
+    if (level > 0) {
+      level--;
+      continue;
+    }
+    /* level 0: the pixel's surface plane, distances positive on the camera's side */
+    vec3 ps, ns;
+    if (gbuf_surface(cell, cam_pos, ps, ns)) {
+      float ta = len * (s * w0 / ((1.0 - s) * w1 + s * w0));
+      float da = dot(o + dir * ta - ps, ns);
+      float db = dot(o + dir * tb - ps, ns);
+      if (da >= 0.0 && db < 0.0) {          /* crosses the plane from in front */
+        hit_px = cell;
+        return ta + (tb - ta) * da / (da - db);
+      }
+      if (da < 0.0 && da >= -thickness) {   /* entered the pixel behind it, within the thickness */
+        hit_px = cell;
+        return ta;
+      }
+      free_so_far = free_so_far && da >= 0.0 && db >= 0.0;
+    }
+    if (free_so_far) {
+      t_free = tb;
+    }
+    s = s_exit + eps;
+  }
+  return s >= s_end ? SCREEN_LEFT : SCREEN_STEPS;
+}

@@ -1,0 +1,138 @@
+"""Lumen's first trace (lecture 21, "Speed of Different Tracing Methods"): every screen-probe ray
+is first walked on the screen, through the HZB (at most 50 cells), and only what that does not
+resolve goes on to the mesh SDFs (to 1.8 m), the global SDF and the sky:
+
+    hzb.depth_pyramid   this frame's HZB (MIN of window depths), once per frame
+    screen_colour       the radiance a screen hit reads, per G-buffer pixel: albedo x (this
+                        frame's direct light + the surface cache's indirect irradiance) / pi +
+                        emission (the lecture reads last frame's scene colour; the surface cache's
+                        indirect needs no reprojection, so the first frame after a move and every
+                        F12 iteration see the same bounces an SDF hit on the cache would)
+    screen_trace_lib    per ray: a hit on screen ends the ray there; otherwise the SDF trace
+                        starts where the depth buffer stops vouching that the ray is empty
+                        (t_free), not at the ray's origin: the saving on rays that leave the screen
+
+Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step evaluates every
+object near the point; the screen resolves rays that hit what the camera sees (most of a room's
+rays) and shortens the rest. Why it is no less right: a screen hit is the visible surface (no
+leak: the depth buffer is the nearest surface) lit at pixel resolution; what the screen does not
+show (behind, off screen) is still traced.
+Debug view TRACE_METHOD (gi_trace_method.comp.glsl): per pixel, the share of its rays served by
+the screen (red), the mesh SDFs (green), the global SDF (blue), none (the sky: black).
+Needs a GPU context.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import compute, hzb
+
+LIBS = ("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl",
+        "lumen_trace_lib.glsl")        # after gi_trace_lib.glsl
+# screen_camera: the frame's view_proj, its 4 columns in 4 RGBA32F texels (a sampler and not a
+# push constant: the probe trace's push constants would pass Vulkan's 128 bytes)
+SAMPLERS = ("gbuf_position", "gbuf_normal", "hzb", "screen_colour", "screen_camera")
+# screen_cam: camera position xyz, w the thickness (m) a surface is assumed behind the depth
+# buffer; screen_steps: HZB cells per ray (0: off)
+PUSH = (('VEC4', 'screen_cam'), ('INT', 'screen_steps'))
+
+
+class ScreenTrace:
+    """This frame's HZB and screen colour (held by the engine's SceneState between the
+    iterations of one frame; rebuilt per frame)."""
+
+    def __init__(self, gbuf: dict, view_proj, cam_pos, width: int, height: int, steps: int = 50,
+                 thickness: float = 0.1):
+        self.gbuf, self.width, self.height = gbuf, int(width), int(height)
+        self.camera = camera_texture(view_proj)
+        self.cam = compute.vec(cam_pos) + [float(thickness)]
+        self.steps = int(steps)
+        self.hzb = hzb.depth_pyramid(gbuf, view_proj, width, height)
+        self.colour = None
+
+    def light(self, resources, cache, direct_tex):
+        """The screen colour from this frame's direct light and the cache's current indirect
+        (call after each surface-cache combine that the rays should see)."""
+        from .surface_cache import pass_shader
+
+        g = self.gbuf["textures"]
+        out = compute.texture((self.width, self.height))
+        sh = pass_shader("screen_colour", ("gbuffer_lib.glsl",),
+                         ("gbuf_position", "gbuf_normal", "gbuf_albedo", "gbuf_emission",
+                          "direct"), (('VEC3', 'cam_pos'),))
+        resources.bind(sh)
+        cache.bind(sh)
+        sh.uniform_sampler("sc_final", cache.indirect)     # E_indirect, not the final light
+        sh.uniform_sampler("texel_card", cache.texel_card)
+        for name in ("position", "normal", "albedo", "emission"):
+            sh.uniform_sampler("gbuf_" + name, g[name])
+        sh.uniform_sampler("direct", direct_tex)
+        sh.uniform_float("cam_pos", self.cam[:3])
+        sh.image("out_image", out)
+        compute.dispatch(sh, self.width, self.height)
+        self.colour = out
+
+    def bind(self, sh):
+        g = self.gbuf["textures"]
+        sh.uniform_sampler("gbuf_position", g["position"])
+        sh.uniform_sampler("gbuf_normal", g["normal"])
+        sh.uniform_sampler("hzb", self.hzb)
+        sh.uniform_sampler("screen_colour", self.colour)
+        sh.uniform_sampler("screen_camera", self.camera)
+        sh.uniform_float("screen_cam", self.cam)
+        sh.uniform_int("screen_steps", self.steps if self.colour is not None else 0)
+
+    def method_image(self, resources, gsdf, cache, sky, voxels, t_max: float, rays: int = 8,
+                     frame: int = 0) -> np.ndarray:
+        """The TRACE_METHOD debug view (glsl/gi_trace_method.comp.glsl, read back: a debug view
+        or a test asks for it): float32 [h, w, 4], per pixel the share of `rays` probe-like rays
+        served by the screen (r), the mesh SDFs (g), the global SDF (b)."""
+        from . import voxel_lighting
+        from .screen_probes import GI_LIBS, VL
+
+        out = compute.texture((self.width, self.height))
+        sh = compute.shader("gi_trace_method", samplers=VL + SAMPLERS,
+                            push=PUSH + (('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 't_max')),
+                            libs=GI_LIBS + LIBS, scene=True, surface_cache=True, global_sdf=True)
+        resources.bind(sh)
+        cache.bind(sh)
+        gsdf.bind(sh)
+        sky.bind(sh)
+        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
+        self.bind(sh)
+        sh.uniform_int("rays", int(rays))
+        sh.uniform_int("frame", int(frame))
+        sh.uniform_float("t_max", float(t_max))
+        sh.image("out_image", out)
+        compute.dispatch(sh, self.width, self.height)
+        return compute.read(out)
+
+    def stats(self) -> dict:
+        """GPU bytes: HZB atlas (R32F) and the screen colour (RGBA32F)."""
+        out = {"screen_hzb": self.hzb.width * self.hzb.height * 4}
+        if self.colour is not None:
+            out["screen_colour"] = self.width * self.height * 16
+        return out
+
+
+def camera_texture(view_proj):
+    """view_proj as a 4x1 RGBA32F texture, texel k its column k (GLSL's mat4(c0, c1, c2, c3))."""
+    import gpu
+
+    from .resources import float_buffer
+    cols = np.ascontiguousarray(np.asarray(view_proj, np.float32).T)     # row k = column k
+    return gpu.types.GPUTexture((4, 1), format='RGBA32F', data=float_buffer(cols.reshape(1, 4, 4)))
+
+
+def bind_off(sh, gbuf: dict):
+    """Bind what a tracing pass declares when the screen trace is off (steps 0: never read)."""
+    dummy = compute.texture((1, 1))
+    g = gbuf["textures"]
+    sh.uniform_sampler("gbuf_position", g["position"])
+    sh.uniform_sampler("gbuf_normal", g["normal"])
+    sh.uniform_sampler("hzb", dummy)
+    sh.uniform_sampler("screen_colour", dummy)
+    sh.uniform_sampler("screen_camera", dummy)
+    sh.uniform_float("screen_cam", [0.0, 0.0, 0.0, 0.0])
+    sh.uniform_int("screen_steps", 0)
+    return dummy
