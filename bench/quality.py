@@ -50,7 +50,8 @@ cycles_ref over all pixels and RGB channels:
             with the side-by-side images' exposure and tone map
     leak    `thin` only: mean lum(x) over the pixels where Cycles is black (lum < 1e-4) divided
             by mean lum(x) over the lit ones (the rest, background excluded)
-The table is printed and written to <out>/results.json; <out>/<scene>.png shows the engines side
+The table is printed and written to <out>/results.json; <out>/all_scenes.png stacks the scenes'
+images (a row per scene); <out>/<scene>.png shows the engines side
 by side (left to right in the order printed), each exposure-normalised by the reference's mean
 luminance, Reinhard-mapped and sRGB-encoded the same way. Blender's own render output goes to
 <out>/blender.log (--verbose: to the terminal). An engine that fails is reported in its row and
@@ -648,6 +649,30 @@ def side_by_side(path: Path, tiles, ref) -> str:
     return ""
 
 
+def stack_rows(path: Path, parts) -> str:
+    """The scenes' side-by-side PNGs one under the other (the README's figure of every engine on
+    every scene); rows narrower than the widest are padded black."""
+    import OpenImageIO as oiio
+
+    imgs = []
+    for p in parts:
+        if Path(p).exists():
+            buf = oiio.ImageBuf(str(p))
+            px = buf.get_pixels(oiio.UINT8)
+            if px is not None and px.size:
+                imgs.append(np.asarray(px)[..., :3])
+    if not imgs:
+        return "no scene images"
+    width = max(i.shape[1] for i in imgs)
+    canvas = np.concatenate([np.pad(i, ((0, 0), (0, width - i.shape[1]), (0, 0))) for i in imgs])
+    out = oiio.ImageBuf(oiio.ImageSpec(canvas.shape[1], canvas.shape[0], 3, oiio.UINT8))
+    out.set_pixels(oiio.ROI(0, canvas.shape[1], 0, canvas.shape[0], 0, 1, 0, 3),
+                   np.ascontiguousarray(canvas))
+    if not out.write(str(path)):
+        return f"PNG not written: {out.geterror()}"
+    return ""
+
+
 # Main ------------------------------------------------------------------------------------------
 def fmt(v, spec, none="-"):
     return none if v is None else format(v, spec)
@@ -797,6 +822,9 @@ def main(argv=None):
             p = out / f"{name}_{eng}.exr"
             if eng != "cycles_ref" and p.exists():
                 p.unlink()
+    if len(args.scenes) > 1:
+        err = stack_rows(out / "all_scenes.png", [out / f"{n}.png" for n in args.scenes])
+        say(f"figure: {out / 'all_scenes.png'} (a row per scene){' ' + err if err else ''}")
     wall = time.perf_counter() - start
     say("")
     print_table(rows)
