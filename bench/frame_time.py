@@ -29,9 +29,11 @@ With `--radiance-cache` it also renders with the world radiance cache (radiance_
 and on: F12 one-GI-frame renders alternately (an F12 render starts with an empty cache: the
 first frame) and `--repeat` + 1 view_draw redraws of the still camera at --size (the cache kept,
 rc_budget probes re-traced per redraw), printing frame, GI and screen-probe medians and ratios.
+`--screen-trace` does the same with Lumen's first trace on the screen (screen_trace.py) off and
+on.
 
     ./lumen bench frame_time [--size 256] [--repeat 5] [--extra-objects N] [--trace] [--compare]
-                             [--viewport 640 360] [--radiance-cache]
+                             [--viewport 640 360] [--radiance-cache] [--screen-trace]
 """
 from __future__ import annotations
 
@@ -130,13 +132,13 @@ def compare_voxel_lighting(repeat: int) -> dict:
     return runs
 
 
-def compare_radiance_cache(scene, size: int, repeat: int) -> dict:
-    """The world radiance cache off / on (GISettings.radiance_cache, patched into
-    gi_settings.from_scene as --compare does): F12 one-GI-frame renders alternately (each
-    starts with an empty cache: the first frame, every probe it needs traced) and view_draw at
-    size x size (tools/viewport_harness.py: a still camera, `repeat` + 1 redraws, the cache
-    kept across them and rc_budget probes re-traced per redraw). Returns {on: {'f12': [(s,
-    gi_timings)], 'view': [(s, gi_timings)]}}."""
+def compare_setting(scene, size: int, repeat: int, field: str) -> dict:
+    """A GISettings bool off / on (`field`: radiance_cache, screen_trace; patched into
+    gi_settings.from_scene as --compare does): F12 one-GI-frame renders alternately (with the
+    radiance cache, each starts with an empty cache: the first frame, every probe it needs
+    traced) and view_draw at size x size (tools/viewport_harness.py: a still camera, `repeat` + 1
+    redraws; the radiance cache kept across them and rc_budget probes re-traced per redraw).
+    Returns {on: {'f12': [(s, gi_timings)], 'view': [(s, gi_timings)]}}."""
     import dataclasses
 
     import bpy
@@ -149,7 +151,7 @@ def compare_radiance_cache(scene, size: int, repeat: int) -> dict:
         for _ in range(repeat):
             for on in (False, True):
                 gi_settings.from_scene = (lambda s, viewport=False, on=on: dataclasses.replace(
-                    original(s, viewport), radiance_cache=on))
+                    original(s, viewport), **{field: on}))
                 t = time.perf_counter()
                 bpy.ops.render.render()
                 runs[on]["f12"].append((time.perf_counter() - t,
@@ -157,7 +159,7 @@ def compare_radiance_cache(scene, size: int, repeat: int) -> dict:
         scene.lumen.engine.viewport_quality = scene.lumen.engine.render_quality
         for on in (False, True):
             gi_settings.from_scene = (lambda s, viewport=False, on=on: dataclasses.replace(
-                original(s, viewport), radiance_cache=on))
+                original(s, viewport), **{field: on}))
             out = viewport_harness.run(
                 scene, engine.LumenGIRenderEngine, size, size, redraws=repeat + 1,
                 on_redraw=lambda i: dict(engine.LAST_RENDER.get("gi_timings", {})))
@@ -256,6 +258,8 @@ def main():
     ap.add_argument("--radiance-cache", action="store_true",
                     help="also render with the world radiance cache off and on: F12 (first "
                     "frame) alternately, and still-camera view_draw redraws")
+    ap.add_argument("--screen-trace", action="store_true",
+                    help="also render with Lumen's screen trace off and on, as --radiance-cache")
     ap.add_argument("--trace", action="store_true",
                     help="also time gi_trace per camera ray: voxel lighting vs mesh refinement")
     ap.add_argument("--viewport", type=int, nargs=2, metavar=("W", "H"),
@@ -292,8 +296,10 @@ def main():
             breakdown.update({"gi_" + k: round(v * 1000, 1) for k, v in R["gi_timings"].items()})
         trace = trace_bench(scene, args.size, args.repeat, args.quality) if args.trace else None
         compare = compare_voxel_lighting(args.repeat) if args.compare else None
-        rcache = (compare_radiance_cache(scene, args.size, args.repeat)
-                  if args.radiance_cache else None)
+        toggles = {}
+        for field in ("radiance_cache", "screen_trace"):
+            if getattr(args, field):
+                toggles[field] = compare_setting(scene, args.size, args.repeat, field)
         viewport = {}
         if args.viewport:
             import viewport_harness
@@ -342,7 +348,9 @@ def main():
               f"voxel update - / {med(True, 'voxel_lighting'):.1f} ms; each run's frame ms: "
               f"off {[round(r[0] * 1000) for r in compare[False]]}, "
               f"on {[round(r[0] * 1000) for r in compare[True]]}")
-    if rcache:
+    for field, rcache in toggles.items():
+        name = field.replace("_", " ")
+
         def rc_med(on, kind, key=None, first=False):
             rows = rcache[on][kind]
             rows = rows[:1] if first else (rows[1:] if kind == "view" else rows)
@@ -351,13 +359,13 @@ def main():
         for kind, label in (("f12", "F12, one GI frame, empty cache (first frame)"),
                             ("view", f"view_draw {args.size}x{args.size}, still camera, "
                                      f"redraws 2..{args.repeat + 1}")):
-            print(f"radiance cache off / on, {label}: frame {rc_med(False, kind):.1f} / "
+            print(f"{name} off / on, {label}: frame {rc_med(False, kind):.1f} / "
                   f"{rc_med(True, kind):.1f} ms (x{rc_med(False, kind) / rc_med(True, kind):.2f}),"
                   f" GI {rc_med(False, kind, 'total'):.1f} / {rc_med(True, kind, 'total'):.1f} ms,"
                   f" screen probes {rc_med(False, kind, 'probes'):.1f} / "
                   f"{rc_med(True, kind, 'probes'):.1f} ms "
                   f"(x{rc_med(False, kind, 'probes') / rc_med(True, kind, 'probes'):.2f})")
-        print(f"radiance cache view_draw first redraw off / on: {rc_med(False, 'view', first=True):.1f}"
+        print(f"{name} view_draw first redraw off / on: {rc_med(False, 'view', first=True):.1f}"
               f" / {rc_med(True, 'view', first=True):.1f} ms, screen probes "
               f"{rc_med(False, 'view', 'probes', True):.1f} / "
               f"{rc_med(True, 'view', 'probes', True):.1f} ms")

@@ -345,6 +345,15 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                 state.resources, state.global_sdf, state.surface_cache, sky,
                 state.voxel_lighting if gi_cfg.voxel_lighting else None,
                 min(float(clip_end), 100.0), frame=state.gi_frame)
+    aa_info = {}
+    if final and gi_cfg.aa_samples > 1 and view == "COMBINED":
+        from . import antialias
+        aa = antialias.supersample(
+            state, gbuf, textures, gi_out["texture"] if gi_cfg.enabled else None, state.lights,
+            sky, cam_pos, view_proj, width, height, gi_cfg.aa_samples,
+            float(getattr(scene.render, "filter_size", 1.5)), sky_cones)
+        textures = aa["textures"]
+        aa_info = dict(aa_seconds=aa["seconds"], aa_samples=aa["samples"])
     t5 = time.perf_counter()
     MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled),
                               **gi_methods.stats(state))
@@ -360,7 +369,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
         direct_part=out.get("part", (0, direct_light.LIGHT_SAMPLES)),
-        gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, **gi_info)
+        gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, **gi_info, **aa_info)
     if stale:
         LAST_RENDER["notes"].append(staleness.summary(stale) + ": drawn, but their light and "
                                     "shadows are the bake's; press Bake")

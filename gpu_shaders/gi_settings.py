@@ -39,6 +39,7 @@ class GISettings:
     quality: str = "MEDIUM"        # OFF: direct light and SDF sky occlusion only
     bounces: int = 3               # surface-cache bounces an F12 render converges before gathering
     render_frames: int = 8         # F12: frames of jittered probes averaged (temporal accumulation)
+    aa_samples: int = 8            # F12: jittered G-buffers averaged (antialias.py; 1: off)
     probe_tile: int = 16
     probe_res: int = 8
     gsdf_n: int = 48
@@ -103,6 +104,7 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
         extra["sc_tiles"] = -(-texels // 1024)
     return settings(q, bounces=int(getattr(s, "bounces", d.bounces)),
                     render_frames=int(getattr(s, "render_frames", d.render_frames)),
+                    aa_samples=int(getattr(s, "aa_samples", d.aa_samples)),
                     gather=str(getattr(s, "gi_gather", d.gather)),
                     voxel_lighting=bool(getattr(s, "voxel_lighting", d.voxel_lighting)),
                     radiance_cache=bool(getattr(s, "radiance_cache", d.radiance_cache)),

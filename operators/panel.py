@@ -210,6 +210,7 @@ class RENDER_PT_lumen_gi_render(_RenderPanel, bpy.types.Panel):
         sub.active = s.render_quality != 'OFF'
         sub.prop(s, "bounces")
         sub.prop(s, "render_frames", text="Frames")
+        col.prop(s, "aa_samples", text="Anti-Aliasing")
 
 
 class RENDER_PT_lumen_gi_method(_RenderPanel, bpy.types.Panel):

@@ -134,6 +134,13 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
         description="Frames a final render averages, each with its samples slightly moved. More "
                     "removes blotches and noise from the bounced light; render time grows with it",
         default=GI.render_frames, min=1, max=256)
+    aa_samples: IntProperty(
+        name="Anti-Aliasing Samples",
+        description="Final render: the image is averaged over this many slightly moved "
+                    "camera positions, so edges and shadow edges come out smooth (filtered as "
+                    "Film > Filter Size says). Each sample redraws the geometry and direct light; "
+                    "the bounced light is computed once. 1 turns it off",
+        default=GI.aa_samples, min=1, max=64)
     gi_method: EnumProperty(
         name="GI Method",
         description="Which technique brings the bounced light. Lumen sees the whole scene; the "

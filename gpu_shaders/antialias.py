@@ -1,0 +1,157 @@
+"""Anti-aliasing of F12 renders: the image is the mean of `samples` G-buffers drawn with the
+camera moved by a fraction of a pixel, as Cycles and EEVEE filter theirs (Blackman-Harris of the
+scene's Film > Filter Size, 1.5 px by default, importance-sampled separably in x and y as Cycles
+does, so every sample weighs the same).
+
+Why: with one G-buffer sample per pixel every edge is a staircase, and against a path tracer's
+filtered image an edge pixel that is all floor where the reference is half floor and half
+background costs more than all the noise of the bounce (relMSE and SSIM weigh it so). Why this
+is cheap: the bounced light is smooth and is computed once, on the unjittered G-buffer; per
+sample only the G-buffer, the direct light (sharp shadows and edges need it at the sample) and
+two full-screen passes run:
+
+    mesh_batches.draw     the sample's G-buffer (view_proj moved by the jitter)
+    direct_light.shade    its direct light
+    aa_resolve            its E_indirect: the frame's E from the unjittered pixels around it that
+                          show the same surface (glsl/aa_resolve.comp.glsl)
+    composite             its Combined and Diffuse Indirect
+    gi_accumulate         running means of Combined, Diffuse Direct, Diffuse Indirect, Diffuse Color
+
+The Normal pass stays the unjittered one (a mean of normals is not a normal). Needs a GPU
+context (jitters() and jittered() are numpy only).
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from .probe_math import hammersley
+
+
+def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
+    """Blackman-Harris window over [-width/2, width/2] (Cycles' default pixel filter)."""
+    t = np.clip(np.asarray(x, np.float64) / max(width, 1e-6) + 0.5, 0.0, 1.0)
+    a = 2.0 * math.pi * t
+    return 0.35875 - 0.48829 * np.cos(a) + 0.14128 * np.cos(2 * a) - 0.01168 * np.cos(3 * a)
+
+
+def jitters(samples: int, width: float = 1.5) -> np.ndarray:
+    """float64 [samples, 2]: pixel offsets distributed as the Blackman-Harris filter of `width`
+    pixels, separably (inverse CDF of a 1D table applied to a Hammersley set)."""
+    n = max(int(samples), 1)
+    xs = np.linspace(-width / 2, width / 2, 1025)
+    cdf = np.concatenate([[0.0], np.cumsum(0.5 * (blackman_harris(xs[1:], width)
+                                                  + blackman_harris(xs[:-1], width))
+                                           * np.diff(xs))])
+    cdf /= cdf[-1]
+    u = (hammersley(n) + 0.5 / n) % 1.0 if n > 1 else np.full((1, 2), 0.5)
+    return np.interp(u, cdf, xs)
+
+
+def jittered(view_proj, dx: float, dy: float, width: int, height: int) -> np.ndarray:
+    """view_proj with the image moved so that pixel (i, j) shows the scene at (i + 0.5 + dx,
+    j + 0.5 + dy): clip x -= 2 dx / width * w (the same for y)."""
+    m = np.array(view_proj, np.float64).reshape(4, 4)
+    m[0] -= (2.0 * dx / width) * m[3]
+    m[1] -= (2.0 * dy / height) * m[3]
+    return m
+
+
+def footprint(view_proj, height: int) -> tuple:
+    """(a, b): a pixel's world size at distance d is about a d + b (perspective: a = 2 / (P11 h);
+    orthographic: b = 2 / (P11 h))."""
+    m = np.asarray(view_proj, np.float64).reshape(4, 4)
+    scale = float(np.linalg.norm(m[1, :3]))           # P11 times the camera's up axis (unit)
+    size = 2.0 / max(scale * height, 1e-12)
+    perspective = float(np.linalg.norm(m[3, :3])) > 0.5   # row 3: -forward, or (0, 0, 0, 1)
+    return (size, 0.0) if perspective else (0.0, size)
+
+
+class Supersampler:
+    """Running means of the sampled passes (textures), one frame's."""
+
+    NAMES = ("Combined", "Diffuse Direct", "Diffuse Indirect", "Diffuse Color")
+
+    def __init__(self, width: int, height: int):
+        self.width, self.height = int(width), int(height)
+        self.means = {}
+        self.count = 0
+
+    def add(self, textures: dict):
+        from . import compute
+
+        self.count += 1
+        blend = 1.0 / self.count
+        for name in self.NAMES:
+            new = textures.get(name)
+            if new is None:
+                continue
+            old = self.means.get(name)
+            if old is None:
+                self.means[name] = new
+                continue
+            out = compute.texture((self.width, self.height))
+            sh = compute.shader("gi_accumulate", samplers=("e_new", "e_history"),
+                                push=(('FLOAT', 'blend'),))
+            sh.uniform_sampler("e_new", new)
+            sh.uniform_sampler("e_history", old)
+            sh.uniform_float("blend", float(blend))
+            sh.image("out_image", out)
+            compute.dispatch(sh, self.width, self.height)
+            self.means[name] = out
+
+
+def resolve_indirect(gbuf: dict, base: dict, e_base, jitter, foot, cam_pos, width: int,
+                     height: int):
+    """glsl/aa_resolve.comp.glsl: E at a jittered sample's pixels from the frame's E."""
+    from . import compute
+
+    out = compute.texture((width, height))
+    sh = compute.shader("aa_resolve", samplers=("gbuf_position", "gbuf_normal", "base_position",
+                                                "base_normal", "e_base"),
+                        push=(('VEC3', 'cam_pos'), ('VEC2', 'jitter'), ('VEC2', 'footprint')),
+                        libs=("gbuffer_lib.glsl",))
+    sh.uniform_sampler("gbuf_position", gbuf["textures"]["position"])
+    sh.uniform_sampler("gbuf_normal", gbuf["textures"]["normal"])
+    sh.uniform_sampler("base_position", base["textures"]["position"])
+    sh.uniform_sampler("base_normal", base["textures"]["normal"])
+    sh.uniform_sampler("e_base", e_base)
+    sh.uniform_float("cam_pos", compute.vec(cam_pos))
+    sh.uniform_float("jitter", compute.vec(jitter, 2))
+    sh.uniform_float("footprint", compute.vec(foot, 2))
+    sh.image("out_image", out)
+    compute.dispatch(sh, width, height)
+    return out
+
+
+def supersample(state, base: dict, textures: dict, e_indirect, lights, sky, cam_pos, view_proj,
+                width: int, height: int, samples: int, filter_width: float, sky_cones: int) -> dict:
+    """The anti-aliased passes ({name: texture} for Supersampler.NAMES) of a frame whose
+    unjittered G-buffer is `base`, passes `textures` and indirect irradiance `e_indirect` (None:
+    GI off). Returns {'textures', 'seconds', 'samples'}."""
+    from . import composite, direct_light
+
+    t0 = time.perf_counter()
+    acc = Supersampler(width, height)
+    foot = footprint(view_proj, height)
+    for dx, dy in jitters(samples, filter_width):
+        vp = jittered(view_proj, dx, dy, width, height)
+        inv_vp = np.linalg.inv(vp)
+        gbuf = state.mesh_batches.draw(vp, width, height)
+        out = direct_light.shade(state.resources, gbuf, lights, sky, cam_pos, inv_vp, width,
+                                 height, sky_cones=sky_cones, light_texture=state.light_texture)
+        sample = {"Combined": out["textures"]["combined"],
+                  "Diffuse Direct": out["textures"]["direct"],
+                  "Diffuse Color": gbuf["textures"]["albedo"]}
+        if e_indirect is not None:
+            e = resolve_indirect(gbuf, base, e_indirect, (dx, dy), foot, cam_pos, width, height)
+            comp = composite.composite(gbuf, out["textures"]["direct"], e, sky, inv_vp, width,
+                                       height)
+            sample["Combined"] = comp["textures"]["combined"]
+            sample["Diffuse Indirect"] = comp["textures"]["indirect"]
+        acc.add(sample)
+    result = dict(textures)
+    result.update(acc.means)
+    return {"textures": result, "seconds": time.perf_counter() - t0, "samples": acc.count}
