@@ -727,6 +727,21 @@ def parse_args(argv=None):
     return args
 
 
+def write_results(out: Path, args, env, rows, wall) -> None:
+    """results.json (after every scene too: a run stopped half-way keeps what it measured),
+    written through a temporary file."""
+    tmp = out / "results.json.tmp"
+    tmp.write_text(json.dumps(dict(
+        size=args.size, cycles_samples=args.cycles_samples, scenes=args.scenes,
+        engines=args.engines, wall_seconds=wall, environment=env, rows=rows,
+        metrics_doc=dict(rel_mse=f"mean((x-ref)^2/(ref^2+{EPS}))", mae="mean |x-ref|",
+                         bias="mean lum(x)/mean lum(ref)-1",
+                         ssim="mean SSIM of tone-mapped luminance, 11x11 Gaussian window",
+                         leak=f"thin: mean lum over ref lum<{BLACK} / mean lum over lit px")),
+        indent=1, default=str))
+    tmp.replace(out / "results.json")
+
+
 def main(argv=None):
     args = parse_args(argv)
     start = time.perf_counter()
@@ -824,6 +839,7 @@ def main(argv=None):
             p = out / f"{name}_{eng}.exr"
             if eng != "cycles_ref" and p.exists():
                 p.unlink()
+        write_results(out, args, env, rows, time.perf_counter() - start)
     if len(args.scenes) > 1:
         err = stack_rows(out / "all_scenes.png", [out / f"{n}.png" for n in args.scenes])
         say(f"figure: {out / 'all_scenes.png'} (a row per scene){' ' + err if err else ''}")
@@ -833,14 +849,7 @@ def main(argv=None):
     say(f"\nwall time {wall:.1f} s; seconds = the timed render call; warm-up = one {WARMUP_SIZE}x"
         f"{WARMUP_SIZE} render before it (shader compilation); bake = one-off bake (light probes / "
         f"lumen.bake); leak = mean lum over Cycles-black px / mean lum over lit px")
-    (out / "results.json").write_text(json.dumps(dict(
-        size=args.size, cycles_samples=args.cycles_samples, scenes=args.scenes,
-        engines=args.engines, wall_seconds=wall, environment=env, rows=rows,
-        metrics_doc=dict(rel_mse=f"mean((x-ref)^2/(ref^2+{EPS}))", mae="mean |x-ref|",
-                         bias="mean lum(x)/mean lum(ref)-1",
-                         ssim="mean SSIM of tone-mapped luminance, 11x11 Gaussian window",
-                         leak=f"thin: mean lum over ref lum<{BLACK} / mean lum over lit px")),
-        indent=1, default=str))
+    write_results(out, args, env, rows, wall)
     say(f"results: {out / 'results.json'}")
     return 0
 
