@@ -18,7 +18,8 @@ two full-screen passes run:
     gi_accumulate         running means of Combined, Diffuse Direct, Diffuse Indirect, Diffuse Color
 
 The Normal pass stays the unjittered one (a mean of normals is not a normal). Needs a GPU
-context (jitters() and jittered() are numpy only).
+context (jitters() and jittered() are numpy only). The viewport runs the same samples one per
+redraw once its view has converged (Progressive).
 """
 from __future__ import annotations
 
@@ -126,32 +127,69 @@ def resolve_indirect(gbuf: dict, base: dict, e_base, jitter, foot, cam_pos, widt
     return out
 
 
-def supersample(state, base: dict, textures: dict, e_indirect, lights, sky, cam_pos, view_proj,
-                width: int, height: int, samples: int, filter_width: float, sky_cones: int) -> dict:
-    """The anti-aliased passes ({name: texture} for Supersampler.NAMES) of a frame whose
-    unjittered G-buffer is `base`, passes `textures` and indirect irradiance `e_indirect` (None:
-    GI off). Returns {'textures', 'seconds', 'samples'}."""
+def add_sample(acc: Supersampler, state, base: dict, e_indirect, lights, sky, cam_pos,
+               view_proj, jitter, sky_cones: int):
+    """One jittered sample of the frame (see the module docstring) into `acc`."""
     from . import composite, direct_light
 
+    width, height = acc.width, acc.height
+    foot = footprint(view_proj, height)
+    dx, dy = (float(v) for v in jitter)
+    vp = jittered(view_proj, dx, dy, width, height)
+    inv_vp = np.linalg.inv(vp)
+    gbuf = state.mesh_batches.draw(vp, width, height)
+    out = direct_light.shade(state.resources, gbuf, lights, sky, cam_pos, inv_vp, width,
+                             height, sky_cones=sky_cones, light_texture=state.light_texture)
+    sample = {"Combined": out["textures"]["combined"],
+              "Diffuse Direct": out["textures"]["direct"],
+              "Diffuse Color": gbuf["textures"]["albedo"]}
+    if e_indirect is not None:
+        e = resolve_indirect(gbuf, base, e_indirect, (dx, dy), foot, cam_pos, width, height)
+        comp = composite.composite(gbuf, out["textures"]["direct"], e, sky, inv_vp, width,
+                                   height)
+        sample["Combined"] = comp["textures"]["combined"]
+        sample["Diffuse Indirect"] = comp["textures"]["indirect"]
+    acc.add(sample)
+
+
+def supersample(state, base: dict, textures: dict, e_indirect, lights, sky, cam_pos, view_proj,
+                width: int, height: int, samples: int, filter_width: float, sky_cones: int) -> dict:
+    """F12: the anti-aliased passes ({name: texture} for Supersampler.NAMES) of a frame whose
+    unjittered G-buffer is `base`, passes `textures` and indirect irradiance `e_indirect` (None:
+    GI off). Returns {'textures', 'seconds', 'samples'}."""
     t0 = time.perf_counter()
     acc = Supersampler(width, height)
-    foot = footprint(view_proj, height)
-    for dx, dy in jitters(samples, filter_width):
-        vp = jittered(view_proj, dx, dy, width, height)
-        inv_vp = np.linalg.inv(vp)
-        gbuf = state.mesh_batches.draw(vp, width, height)
-        out = direct_light.shade(state.resources, gbuf, lights, sky, cam_pos, inv_vp, width,
-                                 height, sky_cones=sky_cones, light_texture=state.light_texture)
-        sample = {"Combined": out["textures"]["combined"],
-                  "Diffuse Direct": out["textures"]["direct"],
-                  "Diffuse Color": gbuf["textures"]["albedo"]}
-        if e_indirect is not None:
-            e = resolve_indirect(gbuf, base, e_indirect, (dx, dy), foot, cam_pos, width, height)
-            comp = composite.composite(gbuf, out["textures"]["direct"], e, sky, inv_vp, width,
-                                       height)
-            sample["Combined"] = comp["textures"]["combined"]
-            sample["Diffuse Indirect"] = comp["textures"]["indirect"]
-        acc.add(sample)
+    for jitter in jitters(samples, filter_width):
+        add_sample(acc, state, base, e_indirect, lights, sky, cam_pos, view_proj, jitter,
+                   sky_cones)
     result = dict(textures)
     result.update(acc.means)
     return {"textures": result, "seconds": time.perf_counter() - t0, "samples": acc.count}
+
+
+class Progressive:
+    """The viewport's anti-aliasing (held by the SceneState): once a still view has converged,
+    one jittered sample per redraw into a running mean, up to `samples` (the same jitters as
+    F12, so a still viewport ends on the F12 image); a new view, scene or world starts again."""
+
+    def __init__(self):
+        self.key, self.acc = None, None
+
+    @property
+    def done(self) -> int:
+        return self.acc.count if self.acc is not None else 0
+
+    def step(self, key, state, base: dict, textures: dict, e_indirect, lights, sky, cam_pos,
+             view_proj, width: int, height: int, samples: int, filter_width: float,
+             sky_cones: int) -> dict:
+        """This redraw's passes: the running mean after one more sample (none once `samples`
+        are in)."""
+        if key != self.key or self.acc is None:
+            self.key, self.acc = key, Supersampler(width, height)
+        marks = jitters(samples, filter_width)
+        if self.acc.count < len(marks):
+            add_sample(self.acc, state, base, e_indirect, lights, sky, cam_pos, view_proj,
+                       marks[self.acc.count], sky_cones)
+        result = dict(textures)
+        result.update(self.acc.means)
+        return result

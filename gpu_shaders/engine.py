@@ -345,15 +345,26 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                 state.resources, state.global_sdf, state.surface_cache, sky,
                 state.voxel_lighting if gi_cfg.voxel_lighting else None,
                 min(float(clip_end), 100.0), frame=state.gi_frame)
-    aa_info = {}
-    if final and gi_cfg.aa_samples > 1 and view == "COMBINED":
+    aa_info = {"aa_progress": None}
+    if gi_cfg.aa_samples > 1 and view == "COMBINED":
         from . import antialias
-        aa = antialias.supersample(
-            state, gbuf, textures, gi_out["texture"] if gi_cfg.enabled else None, state.lights,
-            sky, cam_pos, view_proj, width, height, gi_cfg.aa_samples,
-            float(getattr(scene.render, "filter_size", 1.5)), sky_cones)
-        textures = aa["textures"]
-        aa_info = dict(aa_seconds=aa["seconds"], aa_samples=aa["samples"])
+        aa_args = (state, gbuf, textures, gi_out["texture"] if gi_cfg.enabled else None,
+                   state.lights, sky, cam_pos, view_proj, width, height, gi_cfg.aa_samples,
+                   float(getattr(scene.render, "filter_size", 1.5)), sky_cones)
+        t_aa = time.perf_counter()
+        if final:
+            aa = antialias.supersample(*aa_args)
+            textures = aa["textures"]
+            aa_info = dict(aa_seconds=aa["seconds"], aa_samples=aa["samples"])
+        elif gi_info.get("gi_converged", True) and state.direct.converged:
+            # a still viewport: one jittered sample per redraw, ending on the F12 image
+            key = (np.asarray(view_proj, np.float64).tobytes(), width, height, state.epoch,
+                   sky.key, gi_cfg.aa_samples)
+            textures = state.aa.step(key, *aa_args)
+            aa_info = dict(aa_seconds=time.perf_counter() - t_aa, aa_samples=state.aa.done,
+                           aa_progress=(state.aa.done, gi_cfg.aa_samples))
+        else:
+            aa_info = dict(aa_progress=(0, gi_cfg.aa_samples))
     t5 = time.perf_counter()
     MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled),
                               **gi_methods.stats(state))
@@ -617,8 +628,9 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             draw_message(f"Lumen GI: {exc}", w, h)
             return
         LAST_RENDER["pixel_size"] = ps
-        if LAST_RENDER.get("gi_converged") is False:
-            self.tag_redraw()              # progressive: keep accumulating GI frames
+        aa = LAST_RENDER.get("aa_progress")
+        if LAST_RENDER.get("gi_converged") is False or (aa is not None and aa[0] < aa[1]):
+            self.tag_redraw()              # progressive: keep accumulating GI frames, AA samples
         if fr.shown is not None:           # a debug view's image (computed on the CPU)
             tex = gpu.types.GPUTexture((fw, fh), format='RGBA16F', data=float_buffer(fr.shown))
         else:
@@ -633,9 +645,11 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         batch.draw(shader)
         self.unbind_display_space_shader()
         gpu.state.blend_set('NONE')
-        progress = LAST_RENDER.get("gi_progress")
+        progress = LAST_RENDER.get("gi_progress") or (0, 0)
+        if aa is not None:                 # GI frames first, then the anti-aliasing samples
+            progress = (progress[0] + aa[0], progress[1] + aa[1])
         line = 0
-        if progress is not None and progress[0] < progress[1]:
+        if progress[0] < progress[1]:
             draw_message(f"Lumen GI: refining {progress[0]}/{progress[1]}", w, h)
             line = 1
         stale = LAST_RENDER.get("stale")

@@ -88,6 +88,8 @@ class SceneState:
         from .direct_light import Progressive   # (imports gpu: here, so plan() stays numpy-only)
 
         self.direct = Progressive()  # the viewport's direct light, spread over redraws
+        from .antialias import Progressive as ProgressiveAA
+        self.aa = ProgressiveAA()    # the viewport's anti-aliasing once a still view converged
         self.epoch = 0               # depsgraph updates seen (engine.view_update) and syncs
                                      # with changes: what the progressive direct light keys on
         self.bake = None

@@ -1,6 +1,7 @@
 """The viewport path headless: LumenGIRenderEngine.view_draw called inside a render() that holds
 a GPU context, with a GPUOffScreen bound and a duck-typed context (region, region_data,
-space_data). Checks that redraws of a still view converge to the F12 image of the same camera,
+space_data). Checks that redraws of a still view converge to the F12 image of the same camera (its
+anti-aliasing samples included, one per redraw once the rest has converged),
 that Blender's viewport Pixel Size renders the frame at 1/ps per side and still fills the region,
 and that the viewport uses its own GI quality."""
 import sys
@@ -49,7 +50,8 @@ def state(i):
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("error")
     return dict(converged=R.get("gi_converged"), width=R["width"], height=R["height"],
-                quality=R["gi_settings"]["quality"], pixel_size=R.get("pixel_size"))
+                quality=R["gi_settings"]["quality"], pixel_size=R.get("pixel_size"),
+                aa=R.get("aa_progress"))
 
 results = {{}}
 for label, ps, redraws in (("full", "1", 24), ("half", "2", 2)):
@@ -100,7 +102,10 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
     # a still view refines, says when it is done, and then equals F12 of the same camera
     assert full[0]["converged"] is False and full[-1]["converged"] is True, full
     assert all(d["quality"] == "LOW" and d["width"] == 64 for d in full)
+    # then anti-aliases one jittered sample per redraw, the F12 render's samples
+    assert full[0]["aa"] == [0, 8] and full[-1]["aa"] == [8, 8], [d["aa"] for d in full]
     err = rel_mse(np.load(tmp_path / "full_frame.npy"), f12)
+    print("converged viewport against F12: relMSE", err)
     assert err < 0.01, f"converged viewport against F12: relMSE {err:.4f}"
     drawn = np.load(tmp_path / "full_drawn.npy")
     assert drawn.shape[:2] == (64, 64) and (drawn[..., 3] > 0.5).mean() > 0.99
