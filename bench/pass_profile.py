@@ -9,7 +9,7 @@ EEVEE renders the same camera at W x H with 1 render sample in the same process.
 
     .venv/bin/python bench/pass_profile.py [--viewport 640 360] [--redraws 4] [--pixel-size 1]
                                            [--quality MEDIUM] [--extra-objects N]
-    .venv/bin/python bench/pass_profile.py --f12 --scene thin [--size 128]
+    .venv/bin/python bench/pass_profile.py --f12 --scene thin [--size 128] [--toggle screen_trace]
 
 With --f12, one F12 render of a bench/quality_scenes scene (or frame_time's) at --size, every
 setting at its default, timed the same way (no EEVEE run).
@@ -53,6 +53,9 @@ def main():
     ap.add_argument("--f12", action="store_true", help="profile one F12 render instead")
     ap.add_argument("--scene", default="", help="a bench/quality_scenes scene (default: frame_time's)")
     ap.add_argument("--size", type=int, default=128, help="--f12: image side")
+    ap.add_argument("--toggle", default="", metavar="SETTING",
+                    help="--f12: a bool of scene.lumen.engine (e.g. screen_trace): one render "
+                    "with it off and one on (after a warm-up of each), pass by pass side by side")
     args = ap.parse_args()
     if args.f12:
         return profile_f12(args)
@@ -172,15 +175,10 @@ def profile_f12(args):
         if bpy.ops.lumen.bake() != {'FINISHED'}:
             raise SystemExit("bake failed")
         scene.render.engine = "LUMEN_GI"
+        if args.toggle:
+            return toggle_f12(args, scene, engine)
         bpy.ops.render.render()                       # warm-up: shader compilation
-        timings = defaultdict(float)
-        undo = timed_dispatches(timings)
-        t = time.perf_counter()
-        try:
-            bpy.ops.render.render()
-        finally:
-            undo()
-        total = time.perf_counter() - t
+        total, timings = timed_render()
     R = engine.LAST_RENDER
     print(f"F12 {args.size}x{args.size} of {args.scene or 'frame_time'}: {total * 1000:.0f} ms, "
           f"{R.get('gi_iterations')} GI iterations, surface-cache tiles relit "
@@ -189,6 +187,42 @@ def profile_f12(args):
     for k, v in sorted(timings.items(), key=lambda kv: -kv[1]):
         if v * 1000 >= 0.05:
             print(f"{k:40s} {v * 1000:9.1f} {v / total:7.1%}")
+
+
+def timed_render():
+    """(seconds, {pass: seconds}) of one F12 render."""
+    import bpy
+
+    timings = defaultdict(float)
+    undo = timed_dispatches(timings)
+    t = time.perf_counter()
+    try:
+        bpy.ops.render.render()
+    finally:
+        undo()
+    return time.perf_counter() - t, timings
+
+
+def toggle_f12(args, scene, engine):
+    """--toggle: the same F12 with scene.lumen.engine.<args.toggle> off, then on."""
+    import bpy
+
+    settings = scene.lumen.engine
+    if not isinstance(getattr(settings, args.toggle, None), bool):
+        raise SystemExit(f"--toggle {args.toggle}: not a bool setting of scene.lumen.engine")
+    runs = {}
+    for on in (False, True):
+        setattr(settings, args.toggle, on)
+        bpy.ops.render.render()                       # warm-up: shader compilation
+        runs[on] = timed_render() + (dict(engine.LAST_RENDER.get("gi_timings", {})),)
+    (t0, p0, g0), (t1, p1, g1) = runs[False], runs[True]
+    print(f"F12 {args.size}x{args.size} of {args.scene or 'frame_time'}, {args.toggle} off / on: "
+          f"{t0 * 1000:.0f} / {t1 * 1000:.0f} ms (x{t0 / t1:.2f}); screen probes "
+          f"{g0.get('probes', 0) * 1000:.0f} / {g1.get('probes', 0) * 1000:.0f} ms")
+    for k in sorted(set(p0) | set(p1), key=lambda k: -max(p0.get(k, 0), p1.get(k, 0))):
+        a, b = p0.get(k, 0.0), p1.get(k, 0.0)
+        if max(a, b) * 1000 >= 0.05:
+            print(f"{k:40s} {a * 1000:9.1f} {b * 1000:9.1f}")
 
 
 if __name__ == "__main__":

@@ -475,6 +475,9 @@ def run_lumen(ctx, overrides=()):
     settings = getattr(getattr(scene, "lumen", None), "engine", None)
     if settings is None:
         raise RuntimeError("scene.lumen.engine is missing: the add-on is not registered")
+    for prop in settings.bl_rna.properties:       # every engine starts from the defaults
+        if prop.identifier != "rna_type" and not prop.is_readonly:
+            settings.property_unset(prop.identifier)
     for attr, value in overrides:
         if hasattr(settings, attr):
             try:

@@ -7,8 +7,9 @@ Why: with one G-buffer sample per pixel every edge is a staircase, and against a
 filtered image an edge pixel that is all floor where the reference is half floor and half
 background costs more than all the noise of the bounce (relMSE and SSIM weigh it so). Why this
 is cheap: the bounced light is smooth and is computed once, on the unjittered G-buffer; per
-sample only the G-buffer, the direct light (sharp shadows and edges need it at the sample) and
-two full-screen passes run:
+sample only the G-buffer, the direct light (sharp shadows and edges need it at the sample; each
+sample evaluates its share of the lights' strata, so all samples together cost about one direct
+pass) and two full-screen passes run:
 
     mesh_batches.draw     the sample's G-buffer (view_proj moved by the jitter)
     direct_light.shade    its direct light
@@ -127,11 +128,22 @@ def resolve_indirect(gbuf: dict, base: dict, e_base, jitter, foot, cam_pos, widt
     return out
 
 
+def light_part(index: int, samples: int, strata: int = 8) -> tuple:
+    """(first, take): the direct-light strata sample `index` of `samples` evaluates (the largest
+    power of two <= strata / samples of each light's points and of the sky cones, the next ones
+    each sample): the samples' mean holds every stratum, as one full pass does, for the cost of
+    about one pass (direct_light.shade's `part`, as its Progressive uses)."""
+    n = max(int(strata), 1)
+    take = 1 << max(int(math.log2(max(n // max(int(samples), 1), 1))), 0)
+    return ((int(index) * take) % n, take)
+
+
 def add_sample(acc: Supersampler, state, base: dict, e_indirect, lights, sky, cam_pos,
-               view_proj, jitter, sky_cones: int):
-    """One jittered sample of the frame (see the module docstring) into `acc`."""
+               view_proj, jitter, sky_cones: int, index: int, samples: int):
+    """Sample `index` of `samples` (jitter in pixels) into `acc` (see the module docstring)."""
     from . import composite, direct_light
 
+    part = light_part(index, samples, min(direct_light.LIGHT_SAMPLES, direct_light.SKY_CONES))
     width, height = acc.width, acc.height
     foot = footprint(view_proj, height)
     dx, dy = (float(v) for v in jitter)
@@ -139,7 +151,8 @@ def add_sample(acc: Supersampler, state, base: dict, e_indirect, lights, sky, ca
     inv_vp = np.linalg.inv(vp)
     gbuf = state.mesh_batches.draw(vp, width, height)
     out = direct_light.shade(state.resources, gbuf, lights, sky, cam_pos, inv_vp, width,
-                             height, sky_cones=sky_cones, light_texture=state.light_texture)
+                             height, sky_cones=sky_cones, light_texture=state.light_texture,
+                             part=part)
     sample = {"Combined": out["textures"]["combined"],
               "Diffuse Direct": out["textures"]["direct"],
               "Diffuse Color": gbuf["textures"]["albedo"]}
@@ -159,9 +172,9 @@ def supersample(state, base: dict, textures: dict, e_indirect, lights, sky, cam_
     GI off). Returns {'textures', 'seconds', 'samples'}."""
     t0 = time.perf_counter()
     acc = Supersampler(width, height)
-    for jitter in jitters(samples, filter_width):
+    for k, jitter in enumerate(jitters(samples, filter_width)):
         add_sample(acc, state, base, e_indirect, lights, sky, cam_pos, view_proj, jitter,
-                   sky_cones)
+                   sky_cones, k, samples)
     result = dict(textures)
     result.update(acc.means)
     return {"textures": result, "seconds": time.perf_counter() - t0, "samples": acc.count}
@@ -189,7 +202,7 @@ class Progressive:
         marks = jitters(samples, filter_width)
         if self.acc.count < len(marks):
             add_sample(self.acc, state, base, e_indirect, lights, sky, cam_pos, view_proj,
-                       marks[self.acc.count], sky_cones)
+                       marks[self.acc.count], sky_cones, self.acc.count, samples)
         result = dict(textures)
         result.update(self.acc.means)
         return result

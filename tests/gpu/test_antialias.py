@@ -2,7 +2,7 @@
 
 - numpy: the jitters are distributed as the Blackman-Harris filter (mean 0, the filter's
   variance, inside its width); a jittered view_proj moves every point's pixel position by the
-  jitter exactly.
+  jitter exactly; the samples' shares of the direct light's strata cover all 8 of them.
 - An emissive half-plane seen by an orthographic camera with its edge through the centres of
   one pixel column (GI Off, black world): without anti-aliasing the image is a hard step (0 or
   1); with it that column is 0.5 (a symmetric filter over a symmetric jitter set) and each row's
@@ -51,6 +51,16 @@ def test_jitters_follow_the_filter():
     np.testing.assert_allclose(j.mean(axis=0), 0.0, atol=1e-3)
     np.testing.assert_allclose(j.var(axis=0), var, rtol=0.05)
     np.testing.assert_allclose(np.sort(j[:, 0]), -np.sort(j[:, 0])[::-1], atol=1e-9)  # symmetric
+
+
+def test_light_parts_cover_every_stratum():
+    aa = _antialias()
+    for samples, take in ((1, 8), (2, 4), (4, 2), (8, 1), (3, 2), (16, 1)):
+        parts = [aa.light_part(k, samples, 8) for k in range(samples)]
+        assert all(t == take for _, t in parts)
+        covered = sorted({(f + i) % 8 for f, t in parts for i in range(t)})
+        if samples * take >= 8:
+            assert covered == list(range(8)), (samples, parts)
 
 
 def test_jittered_projection_moves_pixels_by_the_jitter():
