@@ -11,7 +11,8 @@
                          (surface_cache_pages.py), F12 every tile
     screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py);
                          with GISettings.screen_trace their rays walk the HZB first
-                         (screen_trace.py: HZB once per frame, the screen colour per iteration)
+                         (screen_trace.py: HZB once per frame, the screen colour per iteration
+                         from the last gather: none on a frame's first gather)
                          or another final gather passed as `gather` (GI Method VXGI: vxgi.py's
                          cones read the same voxel lighting)
                          with GISettings.radiance_cache the rays trace ~2 m and the world
@@ -160,8 +161,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 # (as the screen probes' own rays are: the same image quality); viewport: the
                 # budget, new probes first, exponential
                 rc = {}
-                if screen is not None:
-                    screen.light(res, cache, direct)
+                if screen is not None and probes.history is not None:
+                    screen.light(direct, probes.history, sky)   # last gather's light
                     rc["screen"] = screen
                 if rcache is not None:
                     rc.update(rcache=rcache, rc_budget=gi.rc_budget, rc_blend=0.25,

@@ -3,11 +3,14 @@ is first walked on the screen, through the HZB (at most 50 cells), and only what
 resolve goes on to the mesh SDFs (to 1.8 m), the global SDF and the sky:
 
     hzb.depth_pyramid   this frame's HZB (MIN of window depths), once per frame
-    screen_colour       the radiance a screen hit reads, per G-buffer pixel: albedo x (this
-                        frame's direct light + the surface cache's indirect irradiance) / pi +
-                        emission (the lecture reads last frame's scene colour; the surface cache's
-                        indirect needs no reprojection, so the first frame after a move and every
-                        F12 iteration see the same bounces an SDF hit on the cache would)
+    screen colour       the radiance a screen hit reads, per G-buffer pixel: the composite of
+                        this frame's direct light and the last gather's indirect irradiance (the
+                        probes' history; the lecture reads last frame's scene colour: here on this
+                        frame's G-buffer, nothing to reproject). A gather with no history (the
+                        first of an F12 render, the first after the view moved) has no screen
+                        colour and traces on the SDFs alone: a surface-cache lookup per pixel
+                        instead was measured at 1.2 s a pass at 128x128, 3x what the screen
+                        saved the probe trace
     screen_trace_lib    per ray: a hit on screen ends the ray there; otherwise the SDF trace
                         starts where the depth buffer stops vouching that the ray is empty
                         (t_free), not at the ray's origin: the saving on rays that leave the screen
@@ -44,40 +47,32 @@ class ScreenTrace:
     def __init__(self, gbuf: dict, view_proj, cam_pos, width: int, height: int, steps: int = 50,
                  thickness: float = 0.1):
         self.gbuf, self.width, self.height = gbuf, int(width), int(height)
+        self.view_proj = np.asarray(view_proj, np.float64)
         self.camera = camera_texture(view_proj)
         self.cam = compute.vec(cam_pos) + [float(thickness)]
         self.steps = int(steps)
         self.hzb = hzb.depth_pyramid(gbuf, view_proj, width, height)
         self.colour = None
 
-    def light(self, resources, cache, direct_tex):
-        """The screen colour from this frame's direct light and the cache's current indirect
-        (call after each surface-cache combine that the rays should see)."""
-        from .surface_cache import pass_shader
+    def light(self, direct_tex, e_history, sky):
+        """The screen colour: the composite of this frame's direct light and the last gather's
+        indirect irradiance (the probes' history: what the lecture calls last frame's scene
+        colour, here on this frame's G-buffer, so nothing needs reprojecting)."""
+        from . import composite
 
-        g = self.gbuf["textures"]
-        out = compute.texture((self.width, self.height))
-        sh = pass_shader("screen_colour", ("gbuffer_lib.glsl",),
-                         ("gbuf_position", "gbuf_normal", "gbuf_albedo", "gbuf_emission",
-                          "direct"), (('VEC3', 'cam_pos'),))
-        resources.bind(sh)
-        cache.bind(sh)
-        sh.uniform_sampler("sc_final", cache.indirect)     # E_indirect, not the final light
-        sh.uniform_sampler("texel_card", cache.texel_card)
-        for name in ("position", "normal", "albedo", "emission"):
-            sh.uniform_sampler("gbuf_" + name, g[name])
-        sh.uniform_sampler("direct", direct_tex)
-        sh.uniform_float("cam_pos", self.cam[:3])
-        sh.image("out_image", out)
-        compute.dispatch(sh, self.width, self.height)
-        self.colour = out
+        inv_vp = np.linalg.inv(self.view_proj)
+        self.colour = composite.composite(self.gbuf, direct_tex, e_history, sky, inv_vp,
+                                          self.width, self.height)["textures"]["combined"]
 
     def bind(self, sh):
         g = self.gbuf["textures"]
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
         sh.uniform_sampler("hzb", self.hzb)
-        sh.uniform_sampler("screen_colour", self.colour)
+        if self.colour is None:                   # no gather yet to read: steps 0 (off)
+            self._dummy = compute.texture((1, 1))
+        sh.uniform_sampler("screen_colour", self.colour if self.colour is not None
+                           else self._dummy)
         sh.uniform_sampler("screen_camera", self.camera)
         sh.uniform_float("screen_cam", self.cam)
         sh.uniform_int("screen_steps", self.steps if self.colour is not None else 0)
