@@ -7,9 +7,10 @@ does this: a uniform grid of cubic cells over the instances' world bounds lists,
 instances that come within the margin M of the cell, and sdf_scene visits only that list.
 
 Per instance the world bounds are its bounding sphere (object row texel 8) and the world AABB of
-its SDF volume (not the mesh bounds: inside the volume a value can be the clamped band, less
-than the distance to the bounds; packing.py); its distance to a cell box is the larger of the
-two gaps, and with a uniform scale its value anywhere in the cell is at least that. A cell stores
+its mesh bounds grown by half a voxel (sdf_visit never lets a value fall below their distance,
+packing.py; the SDF volume, band padding included, listed a 0.25 m icosphere in every cell
+within 1.5 m of it); its distance to a cell box is the larger of the two gaps, and with a
+uniform scale its value anywhere in the cell is at least that. A cell stores
   - its list, nearest first, each entry with its distance to the cell: sdf_scene stops at the
     first entry at least as far as the best value so far (every later one is farther still);
   - B, a lower bound of every unlisted instance's distance to the cell: the nearest unlisted one
@@ -40,8 +41,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .packing import BRICK
-
 GRID_MAX = 32
 GRID_WIDTH = 1024
 CELL_CAP = 64
@@ -60,8 +59,8 @@ def instance_bounds(objects: np.ndarray):
     w2l = objs[:, 0:4, :].copy()
     w2l[~valid] = np.eye(4)
     l2w = np.linalg.inv(w2l)
-    lo_l = objs[:, 4, :3]                                   # the SDF volume (as texel 8's sphere)
-    hi_l = lo_l + objs[:, 5, :3] * (BRICK - 1) * objs[:, 4, 3:4]
+    half = 0.5 * objs[:, 4, 3:4]                  # the mesh bounds grown by half a voxel, as
+    lo_l, hi_l = objs[:, 6, :3] - half, objs[:, 7, :3] + half      # texel 8's sphere (sdf_visit)
     c = np.einsum("nij,nj->ni", l2w[:, :3, :3], (lo_l + hi_l) / 2) + l2w[:, :3, 3]
     e = np.einsum("nij,nj->ni", np.abs(l2w[:, :3, :3]), np.abs(hi_l - lo_l) / 2)
     voxel = objs[:, 4, 3] * objs[:, 7, 3]
