@@ -112,20 +112,22 @@ vec3 sdf_world_to_local(int obj, vec3 pw)
 int sdf_tests = 0;
 int sdf_visits = 0;
 
-/* One instance's part of a scene minimum. Its value is the largest of its sample and two lower
- * bounds of its true distance: to its bounding sphere (texel 8, around the mesh bounds grown by
- * half a voxel) and to its local bounds box less half a voxel (a two-sided mesh stores distance
- * minus half a voxel). Inside the SDF volume a sample far from the surface reads the clamped
- * band, less than the bounds' distance; with the bounds in the value, an instance whose sphere,
- * then whose box, is no nearer than `best` is skipped exactly (its value is at least that far),
- * before its bricks are read. Bounds as tight as the mesh: a sphere around the whole SDF volume
- * (band padding: 1.5 m around a 0.25 m icosphere at 8 voxels/m) let every neighbour through. */
+/* One instance's part of a scene minimum. Its value is the larger of its sample and a lower
+ * bound of its true distance where that bound is positive (outside the mesh bounds; inside them
+ * the sample alone, negative within a solid): the distance to its bounding sphere (texel 8,
+ * around the mesh bounds grown by half a voxel), then to its local bounds box less half a voxel
+ * (a two-sided mesh stores distance minus half a voxel). Inside the SDF volume a sample far from
+ * the surface reads the clamped band, less than the bounds' distance; with the bound in the
+ * value, an instance whose sphere, then whose box, is no nearer than `best` is skipped exactly
+ * (its value is at least that far) before its bricks are read. Bounds as tight as the mesh: a
+ * sphere around the whole SDF volume (band padding: 1.5 m around a 0.25 m icosphere at 8
+ * voxels/m) let every neighbour through. global_sdf_ref.scene_sdf is the numpy twin. */
 void sdf_visit(int i, vec3 pw, inout float best, inout float voxel_world, inout int nearest)
 {
   sdf_tests++;
   vec4 sphere = sdf_object_texel(i, 8);
   float lb = length(pw - sphere.xyz) - sphere.w;
-  if (lb >= best) {
+  if (lb > 0.0 && lb >= best) {
     return;
   }
   vec3 p = sdf_world_to_local(i, pw);
@@ -133,11 +135,14 @@ void sdf_visit(int i, vec3 pw, inout float best, inout float voxel_world, inout 
   vec4 t7 = sdf_object_texel(i, 7);
   float to_box = length(max(max(sdf_object_texel(i, 6).xyz - p, p - t7.xyz), vec3(0.0)));
   lb = max(lb, (to_box - 0.5 * t4.w) * t7.w);
-  if (lb >= best) {
+  if (lb > 0.0 && lb >= best) {
     return;
   }
   sdf_visits++;
-  float d = max(sdf_mesh_local(i, p) * t7.w, lb);
+  float d = sdf_mesh_local(i, p) * t7.w;
+  if (lb > 0.0) {
+    d = max(d, lb);
+  }
   if (d < best) {
     best = d;
     voxel_world = t4.w * t7.w;
