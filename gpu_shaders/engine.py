@@ -238,22 +238,21 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     view. Fills LAST_RENDER with the frame's numbers (and images only when KEEP_IMAGES)."""
     from ..lumen_addon import staleness
     from ..operators.extract import render_only_geometry
-    from ..operators.lights import light_table
     from ..operators.world_capture import world_light
     from . import composite, compute, direct_light, gi, gi_methods, gi_settings, mesh_batches
 
     t0 = time.perf_counter()
     bake, source = scene_bake(scene)
     sky_maps, sky_notes = world_light(scene)     # remembered per world: a capture only on change
-    lights = np.concatenate([light_table(depsgraph), sky_maps.sun_rows()])
+    ext = extraction(state)
+    lights = np.concatenate([ext.light_rows(depsgraph), sky_maps.sun_rows()])
     stale, t_stale = None, time.perf_counter()
     if view in TRACE_VIEWS:
         objects, warnings = None, []
         matrices = mesh_matrices(depsgraph)
     else:
-        ext = extraction(state)
         objects, warnings, keys, meshes, mats, visible = ext.update(depsgraph)
-        matrices = {ob.name: ob.matrix_world for ob in objects}
+        matrices = ext.matrices        # the same dict object until the next walk (sync: no loop)
         t_stale = time.perf_counter()
         if ext.changed or state.stale.bake is not bake or state.stale.pending():
             stale = state.stale.changed(bake, objects, render_only_geometry(depsgraph))

@@ -39,15 +39,26 @@ def texel_centres(origin, n: int, voxel: float) -> np.ndarray:
 
 def scene_sdf(meshes: dict, instances, points, mip: int = 0) -> np.ndarray:
     """World distance lower bound at world points: min over instances of MeshSDF.sample in the
-    instance's local space times the smallest singular value of its 3x3 (as sdf_scene does)."""
+    instance's local space times the smallest singular value of its 3x3, raised where positive
+    to the distance to the mesh bounds (less half a voxel) and to their sphere (as sdf_visit)."""
     p = np.asarray(points, np.float64).reshape(-1, 3)
     best = np.full(len(p), np.inf)
     for inst in instances:
+        sdf = meshes[inst.mesh]
         mw = np.asarray(inst.matrix_world, np.float64)
         inv = np.linalg.inv(mw)
-        scale = float(np.linalg.svd(mw[:3, :3], compute_uv=False).min())
-        d = meshes[inst.mesh].sample(p @ inv[:3, :3].T + inv[:3, 3], mip=mip) * scale
-        best = np.minimum(best, d)
+        sv = np.linalg.svd(mw[:3, :3], compute_uv=False)
+        scale = float(sv.min())
+        local = p @ inv[:3, :3].T + inv[:3, 3]
+        d = sdf.sample(local, mip=mip) * scale
+        h = sdf.mips[mip].voxel_size         # as packing.instance_row
+        lo, hi = np.asarray(sdf.bounds_min) - 0.5 * h, np.asarray(sdf.bounds_max) + 0.5 * h
+        centre = mw[:3, :3] @ ((lo + hi) / 2) + mw[:3, 3]
+        radius = float(sv.max()) * float(np.linalg.norm(hi - lo)) / 2 * (1 + 1e-5) + 1e-6
+        to_box = np.linalg.norm(np.maximum(np.maximum(sdf.bounds_min - local,
+                                                      local - sdf.bounds_max), 0), axis=1)
+        lb = np.maximum(np.linalg.norm(p - centre, axis=1) - radius, (to_box - 0.5 * h) * scale)
+        best = np.minimum(best, np.where(lb > 0, np.maximum(d, lb), d))
     return best
 
 

@@ -73,6 +73,7 @@ class MeshBatches:
         self.built_total = 0       # batches built over the state's life (tests)
         self.table_uploads = 0
         self.last = {}             # the last update's counts
+        self.source = None         # the last update's inputs (identity: a still frame's are)
 
     def stats(self) -> dict:
         """GPU bytes: vertex buffers (14 floats a corner) and the instance table."""
@@ -86,7 +87,13 @@ class MeshBatches:
         """Sync with this frame's instances: `keys[i]` the mesh key of instance i, `meshes`
         {key: MeshData}, `matrices` float64 [n, 4, 4], `visible` bool [n] (camera-visible).
         Builds batches for new or re-extracted meshes, frees those no instance shows, and
-        re-uploads the instance table when it changed. Returns counts (built, table_uploaded)."""
+        re-uploads the instance table when it changed. Returns counts (built, table_uploaded).
+        The very same input objects as the last update (ExtractionCache's still frame: no walk)
+        change nothing: no loop over the instances, no table rebuilt to compare."""
+        source = (keys, meshes, matrices, visible)
+        if self.source is not None and all(a is b for a, b in zip(source, self.source)):
+            self.last = dict(self.last, built=0, table_uploaded=False)
+            return self.last
         n = len(keys)
         mats = np.asarray(matrices, np.float64).reshape(n, 4, 4)
         ok = drawable(mats, np.asarray(visible, bool).reshape(n))
@@ -118,6 +125,7 @@ class MeshBatches:
             self.rows, uploaded = rows, True
             self.table_uploads += 1
         self.runs = runs
+        self.source = source
         self.built_total += built
         self.last = {"built": built, "table_uploaded": uploaded, "unique": len(runs),
                      "instances": int(len(order))}

@@ -7,9 +7,10 @@ does this: a uniform grid of cubic cells over the instances' world bounds lists,
 instances that come within the margin M of the cell, and sdf_scene visits only that list.
 
 Per instance the world bounds are its bounding sphere (object row texel 8) and the world AABB of
-its SDF volume (not the mesh bounds: inside the volume a value can be the clamped band, less
-than the distance to the bounds; packing.py); its distance to a cell box is the larger of the
-two gaps, and with a uniform scale its value anywhere in the cell is at least that. A cell stores
+its mesh bounds grown by half a voxel (sdf_visit never lets a value fall below their distance,
+packing.py; the SDF volume, band padding included, listed a 0.25 m icosphere in every cell
+within 1.5 m of it); its distance to a cell box is the larger of the two gaps, and with a
+uniform scale its value anywhere in the cell is at least that. A cell stores
   - its list, nearest first, each entry with its distance to the cell: sdf_scene stops at the
     first entry at least as far as the best value so far (every later one is farther still);
   - B, a lower bound of every unlisted instance's distance to the cell: the nearest unlisted one
@@ -40,8 +41,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .packing import BRICK
-
 GRID_MAX = 32
 GRID_WIDTH = 1024
 CELL_CAP = 64
@@ -49,6 +48,7 @@ REACH_MARGINS = 4.0
 HEADER_TEXELS = 3
 FAR = 1e30
 PAIR_CHUNK = 1 << 22      # (instance, cell) candidate pairs per numpy batch (memory bound)
+FINE_CELLS = 1 << 17      # cells of the fine level at most (2 MiB of RGBA32F)
 
 
 def instance_bounds(objects: np.ndarray):
@@ -60,8 +60,8 @@ def instance_bounds(objects: np.ndarray):
     w2l = objs[:, 0:4, :].copy()
     w2l[~valid] = np.eye(4)
     l2w = np.linalg.inv(w2l)
-    lo_l = objs[:, 4, :3]                                   # the SDF volume (as texel 8's sphere)
-    hi_l = lo_l + objs[:, 5, :3] * (BRICK - 1) * objs[:, 4, 3:4]
+    half = 0.5 * objs[:, 4, 3:4]                  # the mesh bounds grown by half a voxel, as
+    lo_l, hi_l = objs[:, 6, :3] - half, objs[:, 7, :3] + half      # texel 8's sphere (sdf_visit)
     c = np.einsum("nij,nj->ni", l2w[:, :3, :3], (lo_l + hi_l) / 2) + l2w[:, :3, 3]
     e = np.einsum("nij,nj->ni", np.abs(l2w[:, :3, :3]), np.abs(hi_l - lo_l) / 2)
     voxel = objs[:, 4, 3] * objs[:, 7, 3]
@@ -79,11 +79,30 @@ def _pairs(lo_idx, hi_idx):
     return inst, xyz
 
 
+def _cell_distance(inst, xyz, lo, cell, centre, radius, alo, ahi):
+    """Lower bound of instance `inst`'s value anywhere in cell `xyz` (edge `cell` from `lo`): the
+    larger of the gaps to its AABB and to its sphere."""
+    clo = lo + xyz * cell
+    chi = clo + cell
+    gap = np.linalg.norm(np.maximum(np.maximum(clo - ahi[inst], alo[inst] - chi), 0.0), axis=1)
+    sph = np.linalg.norm(np.maximum(np.maximum(clo - centre[inst], centre[inst] - chi), 0.0),
+                         axis=1) - radius[inst]
+    return np.maximum(gap, sph)
+
+
 def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = CELL_CAP,
-                      width: int = GRID_WIDTH) -> tuple:
+                      width: int = GRID_WIDTH, fine_cells: int = FINE_CELLS) -> tuple:
     """The grid texture's texels for the object table `objects` [n, OBJECT_TEXELS, 4];
     returns (texels float32 [rows, width, 4], info dict: dims, cell, margin, entries, overflow,
-    mean / max count)."""
+    mean / max count).
+
+    Two levels: a coarse grid (at most grid_max cells per axis) finds each cell's candidates
+    within the reach and its bound B; where that grid has at most fine_cells / 8 cells (a flat
+    or small scene), each cell is split in 2 x 2 x 2 and only the coarse cell's listed instances
+    are measured against its children (an instance within M of a child is within M of its
+    parent; an unlisted one is at least the parent's B from it, or is a parent-listed one whose
+    distance to the child is measured): the lists of a 1,000-icosphere field get shorter (15.6
+    -> 11.9 mean) and its sample's early stop nearer, without a reach pass over 8x the cells."""
     valid, centre, radius, alo, ahi, voxel = instance_bounds(objects)
     idx = np.flatnonzero(valid)
     if len(idx):
@@ -93,12 +112,13 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
         margin = max(cell, 4.0 * float(voxel[idx].max()))
         fallback_voxel = float(voxel[idx].min())
     else:
-        lo, cell, dims, margin, fallback_voxel = np.zeros(3), 1.0, np.ones(3, np.int64), 1.0, 1.0
+        lo, hi, cell, dims, margin, fallback_voxel = (np.zeros(3), np.zeros(3), 1.0,
+                                                       np.ones(3, np.int64), 1.0, 1.0)
     ncells = int(dims.prod())
     reach = REACH_MARGINS * margin
     bound = np.full(ncells, FAR)
     in_reach = np.zeros(ncells, np.int64)
-    cells_l, insts_l, dists_l = [], [], []
+    xyz_l, insts_l = [], []
     # candidate cells of each instance: its AABB grown by the reach, clipped to the grid
     cl = np.clip(np.floor((alo[idx] - reach - lo) / cell), 0, dims - 1).astype(np.int64)
     ch = np.clip(np.floor((ahi[idx] + reach - lo) / cell), 0, dims - 1).astype(np.int64)
@@ -112,30 +132,38 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
             continue
         k, xyz = _pairs(cl[a:b], ch[a:b])
         inst = idx[a:b][k]
-        clo = lo + xyz * cell
-        chi = clo + cell
-        gap = np.linalg.norm(np.maximum(np.maximum(clo - ahi[inst], alo[inst] - chi), 0.0), axis=1)
-        sph = np.linalg.norm(np.maximum(np.maximum(clo - centre[inst], centre[inst] - chi), 0.0),
-                             axis=1) - radius[inst]
-        d = np.maximum(gap, sph)
+        d = _cell_distance(inst, xyz, lo, cell, centre, radius, alo, ahi)
         c = xyz[:, 0] + dims[0] * (xyz[:, 1] + dims[1] * xyz[:, 2])
         near = d < reach
         in_reach += np.bincount(c[near], minlength=ncells)
         far = near & (d >= margin)
-        cf, df = c[far], d[far]
-        o = np.lexsort((df, cf))
-        cf, df = cf[o], df[o]
-        head = np.r_[True, cf[1:] != cf[:-1]] if len(cf) else np.zeros(0, bool)
-        bound[cf[head]] = np.minimum(bound[cf[head]], df[head])     # each cell's nearest
+        np.minimum.at(bound, c[far], d[far])                    # each cell's nearest unlisted
         listed = d < margin
-        cells_l.append(c[listed])
+        xyz_l.append(xyz[listed])
         insts_l.append(inst[listed])
-        dists_l.append(d[listed])
-    cells = np.concatenate(cells_l) if cells_l else np.zeros(0, np.int64)
+    xyz = np.concatenate(xyz_l) if xyz_l else np.zeros((0, 3), np.int64)
     insts = np.concatenate(insts_l) if insts_l else np.zeros(0, np.int64)
-    dists = np.concatenate(dists_l) if dists_l else np.zeros(0)
     # instances beyond the reach of a cell exist where not all of them were within it
     bound = np.where(in_reach < len(idx), np.minimum(bound, reach), bound)
+    # the fine level: each coarse cell's listed instances against its 2^3 (or 1) children
+    split = 2 if ncells * 8 <= fine_cells else 1
+    fcell = cell / split
+    fdims = np.clip(np.ceil((hi - lo) / fcell - 1e-9).astype(np.int64), 1, dims * split)
+    child = np.stack(np.meshgrid(*[np.arange(split)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    fxyz = (xyz[:, None, :] * split + child[None]).reshape(-1, 3)
+    finst = np.repeat(insts, len(child))
+    inside = (fxyz < fdims).all(axis=1)
+    fxyz, finst = fxyz[inside], finst[inside]
+    d = _cell_distance(finst, fxyz, lo, fcell, centre, radius, alo, ahi)
+    c = fxyz[:, 0] + fdims[0] * (fxyz[:, 1] + fdims[1] * fxyz[:, 2])
+    ncells = int(fdims.prod())
+    g = np.stack(np.meshgrid(*[np.arange(n) for n in fdims], indexing="ij"), -1)
+    g = g.transpose(2, 1, 0, 3).reshape(-1, 3) // split       # each fine cell's parent, x fastest
+    bound = bound[g[:, 0] + dims[0] * (g[:, 1] + dims[1] * g[:, 2])]
+    unl = d >= margin
+    np.minimum.at(bound, c[unl], d[unl])
+    cells, insts, dists = c[~unl], finst[~unl], d[~unl]
+    cell, dims = fcell, fdims
     counts = np.bincount(cells, minlength=ncells)
     over = counts > cap
     keep = ~over[cells]

@@ -12,12 +12,15 @@ Three arrays, all uploaded as they are by `resources.py` (x fastest, C order of 
   texels 0-3 the rows of the world-to-local 4x4 matrix; 4 = (origin.xyz, voxel size);
   5 = (brick grid xyz, band); 6 = (bounds_min.xyz, indirection offset);
   7 = (bounds_max.xyz, distance scale: local distances times this are world lower bounds,
-  the smallest singular value of the local-to-world 3x3); 8 = (world centre of the SDF volume,
-  radius of a world sphere around it): sdf_scene skips an object whose sphere is farther than
-  the nearest distance found so far (its own value could not be smaller: outside the volume a
-  value is at least the distance to the bounds, while inside it a sample far from the surface
-  reads the clamped band, which can be less than the bounds' distance, so the sphere holds the
-  volume; the object grid, object_grid.py, lists objects by the same volume).
+  the smallest singular value of the local-to-world 3x3); 8 = (world centre of the mesh bounds,
+  radius of a world sphere around them grown by half a voxel): sdf_scene skips an object whose
+  sphere is farther than the nearest distance found so far. Exact, because sdf_visit
+  (sdf_lib.glsl) takes an object's value as the larger of its sample and two lower bounds of
+  its true distance, to this sphere and to its bounds box (less half a voxel: a two-sided mesh
+  stores distance minus half a voxel): inside the SDF volume a sample far from the surface reads
+  the clamped band, less than the bounds' distance, which once made the sphere hold the whole
+  volume (1.5 m around a 0.25 m icosphere at 8 voxels/m: every neighbour was visited at every
+  sample). The object grid (object_grid.py) lists objects by the same bounds.
 
 Integers stored in float texels (grid, offsets) are exact below 2^24; packing checks that.
 """
@@ -102,10 +105,11 @@ def object_row(world_to_local, origin, voxel_size, brick_grid, band, bounds_min,
     row[6] = (*bounds_min, indirection_offset)
     row[7] = (*bounds_max, distance_scale)
     l2w = np.linalg.inv(np.asarray(world_to_local, np.float64))
-    # the sphere holds the whole SDF volume, not only the mesh bounds: inside the volume a value
-    # can be the clamped band, less than the distance to the bounds (see the module docstring)
-    lo = np.asarray(origin, np.float64)
-    hi = lo + np.asarray(brick_grid, np.float64) * (BRICK - 1) * voxel_size
+    # the sphere holds the mesh bounds grown by half a voxel (a two-sided mesh stores its
+    # distance minus half a voxel), not the SDF volume: sdf_visit never lets a value fall below
+    # the bounds' distance (see the module docstring), so nothing farther can be nearer
+    lo = np.asarray(bounds_min, np.float64) - 0.5 * voxel_size
+    hi = np.asarray(bounds_max, np.float64) + 0.5 * voxel_size
     centre = l2w[:3, :3] @ ((lo + hi) / 2) + l2w[:3, 3]
     sigma_max = float(np.linalg.svd(l2w[:3, :3], compute_uv=False).max())
     row[8] = (*centre, sigma_max * float(np.linalg.norm(hi - lo)) / 2 * (1 + 1e-5) + 1e-6)

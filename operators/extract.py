@@ -547,10 +547,14 @@ class ExtractionCache:
     """The scene's extraction kept by a render engine instance between frames, re-read only
     where the depsgraph said something changed (view_update calls `mark` with the names it
     found in depsgraph.updates); everything on the first frame, on F12 (a new cache per render)
-    and when unsure. A frame still walks every instance for its name, key and matrix (what
-    Blender's depsgraph gives only per instance), but reads no mesh data unless a mesh is new,
-    edited, re-materialled or changed its vertex/face counts. `reads` counts the meshes read by
-    the last update (tests: a still frame reads none)."""
+    and when unsure. A frame after a view_update (`mark`) walks every instance for its name, key
+    and matrix (what Blender's depsgraph gives only per instance), but reads no mesh data unless
+    a mesh is new, edited, re-materialled or changed its vertex/face counts. A frame with no
+    view_update since the last walk (a still redraw: navigation, progressive refinement) returns
+    the last walk's result without walking: Blender calls view_update before a draw whenever the
+    depsgraph changed, and the walk is a Python loop over every instance (24 ms at 1,000,
+    bench/object_scaling.py). `walked` says whether the last update walked; `reads` counts the
+    meshes read by the last update (tests: a still frame reads none)."""
 
     def __init__(self):
         self.cache = {}           # mesh_key -> _Cached
@@ -561,11 +565,18 @@ class ExtractionCache:
         self.reads_total = 0
         self.names = None         # instance names of the last update
         self.changed = True       # the last update read a mesh or the instance set changed
+        self.dirty = True         # a view_update since the last walk (or none walked yet)
+        self.walked = True        # the last update walked the depsgraph
+        self.last = None          # the last walk's result
+        self.matrices = {}        # {instance name: world 4x4} of the last walk (one dict object)
+        self.lights = None        # light_table rows of the last light walk
+        self.light_dirty = True
 
     def mark(self, objects=(), meshes=(), materials=(), images=False, everything=False):
         """Objects with a geometry update, meshes with one, edited materials (names), any image
         edited, or unsure (everything is read again): the next update re-reads what they
-        concern."""
+        concern. Any call (every view_update makes one) lets the next update walk again."""
+        self.dirty = self.light_dirty = True
         self.objects.update(objects)
         self.meshes.update(meshes)
         self.materials.update(materials)
@@ -586,6 +597,9 @@ class ExtractionCache:
     def update(self, depsgraph, view_layer=None):
         """(ObjectInputs, warnings, keys, MeshData by key, matrices float64 [n, 4, 4], camera
         visibility bool [n]) of every visible mesh instance, as extract_scene's."""
+        if not self.dirty and self.last is not None:
+            self.walked, self.changed, self.reads = False, False, 0
+            return self.last
         self._invalidate()
         ex = Extractor()
         geometry = {}
@@ -631,7 +645,17 @@ class ExtractionCache:
         self.reads_total += reads
         meshes = {k: c.data for k, c in used.items()}
         mats = np.stack(matrices) if matrices else np.zeros((0, 4, 4))
-        return objects, ex.warnings(), keys, meshes, mats, np.array(visible, bool)
+        self.dirty, self.walked = False, True
+        self.last = (objects, ex.warnings(), keys, meshes, mats, np.array(visible, bool))
+        self.matrices = {o.name: o.matrix_world for o in objects}
+        return self.last
+
+    def light_rows(self, depsgraph):
+        """operators.lights.light_table, walked again only after a view_update (as update)."""
+        if self.light_dirty or self.lights is None:
+            from .lights import light_table
+            self.lights, self.light_dirty = light_table(depsgraph), False
+        return self.lights
 
 
 def extract_objects(depsgraph, view_layer=None):

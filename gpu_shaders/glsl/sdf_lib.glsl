@@ -107,35 +107,45 @@ vec3 sdf_world_to_local(int obj, vec3 pw)
               dot(sdf_object_texel(obj, 2), pw4));
 }
 
-/* World-space distance lower bound of object `obj` at world point pw; voxel_world: its mip-0
- * voxel edge in world units. */
-float sdf_object_world(int obj, vec3 pw, out float voxel_world)
-{
-  float scale = sdf_object_texel(obj, 7).w;
-  voxel_world = sdf_object_texel(obj, 4).w * scale;
-  return sdf_mesh_local(obj, sdf_world_to_local(obj, pw)) * scale;
-}
-
 /* Instances visited by this invocation's sdf_scene calls: sphere tests, full evaluations
  * (tests/gpu/test_object_grid.py reads them; unused otherwise, so the compiler drops them). */
 int sdf_tests = 0;
 int sdf_visits = 0;
 
-/* One instance's part of a scene minimum: skipped when its bounding sphere (texel 8) is no
- * nearer than `best` (its value is at least that far), else its value taken where smaller. */
+/* One instance's part of a scene minimum. Its value is the larger of its sample and a lower
+ * bound of its true distance where that bound is positive (outside the mesh bounds; inside them
+ * the sample alone, negative within a solid): the distance to its bounding sphere (texel 8,
+ * around the mesh bounds grown by half a voxel), then to its local bounds box less half a voxel
+ * (a two-sided mesh stores distance minus half a voxel). Inside the SDF volume a sample far from
+ * the surface reads the clamped band, less than the bounds' distance; with the bound in the
+ * value, an instance whose sphere, then whose box, is no nearer than `best` is skipped exactly
+ * (its value is at least that far) before its bricks are read. Bounds as tight as the mesh: a
+ * sphere around the whole SDF volume (band padding: 1.5 m around a 0.25 m icosphere at 8
+ * voxels/m) let every neighbour through. global_sdf_ref.scene_sdf is the numpy twin. */
 void sdf_visit(int i, vec3 pw, inout float best, inout float voxel_world, inout int nearest)
 {
   sdf_tests++;
   vec4 sphere = sdf_object_texel(i, 8);
-  if (length(pw - sphere.xyz) - sphere.w >= best) {
+  float lb = length(pw - sphere.xyz) - sphere.w;
+  if (lb > 0.0 && lb >= best) {
+    return;
+  }
+  vec3 p = sdf_world_to_local(i, pw);
+  vec4 t4 = sdf_object_texel(i, 4);
+  vec4 t7 = sdf_object_texel(i, 7);
+  float to_box = length(max(max(sdf_object_texel(i, 6).xyz - p, p - t7.xyz), vec3(0.0)));
+  lb = max(lb, (to_box - 0.5 * t4.w) * t7.w);
+  if (lb > 0.0 && lb >= best) {
     return;
   }
   sdf_visits++;
-  float h;
-  float d = sdf_object_world(i, pw, h);
+  float d = sdf_mesh_local(i, p) * t7.w;
+  if (lb > 0.0) {
+    d = max(d, lb);
+  }
   if (d < best) {
     best = d;
-    voxel_world = h;
+    voxel_world = t4.w * t7.w;
     nearest = i;
   }
 }
@@ -195,8 +205,10 @@ bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int near
       int e = first + k;
       vec4 pair = sdf_grid_texel(list + (e >> 1));
       vec2 entry = (e & 1) == 0 ? pair.xy : pair.zw;
-      if (entry.y >= best) {
-        break;    /* nearest first: this instance and every later one are at least this far */
+      /* nearest first: this instance and every later one are at least this far; not at 0 (an
+       * instance over the cell): inside a solid best < 0, and an overlapping one can be deeper */
+      if (entry.y >= best && entry.y > 0.0) {
+        break;
       }
       i = int(entry.x + 0.5);
     }

@@ -81,10 +81,10 @@ def test_object_table_rows(scene):
     np.testing.assert_array_equal(a2[6], np.float32([-0.9, -0.4, -0.15, 0]))
     np.testing.assert_array_equal(a2[7, 3], np.float32(1.0))
     np.testing.assert_array_equal(p.objects[0, 4:8], p.objects[2, 4:8][[0, 1, 2, 3]])
-    # world bounding sphere of the SDF volume (1 x 2 x 2 bricks of 7 voxels of 0.05, scale 2):
-    # centre of the scaled, moved volume (here also the bounds' centre), radius half its diagonal
+    # world bounding sphere of the mesh bounds grown by half a voxel (0.025 .. 0.325 x 0.675 x
+    # 0.675, scale 2): centre of the scaled, moved box, radius half its diagonal
     np.testing.assert_allclose(b[8, :3], [3.35, 0.7, 1.7], atol=1e-6)
-    np.testing.assert_allclose(b[8, 3], np.linalg.norm([0.35, 0.7, 0.7]), rtol=1e-4)
+    np.testing.assert_allclose(b[8, 3], np.linalg.norm([0.3, 0.65, 0.65]), rtol=1e-4)
 
 
 def test_atlas_grid_limits():
