@@ -14,7 +14,10 @@ texels). Repeat until coverage reaches the target or the card limit (UE: 12 by d
 most). Compared with depth-peeled layers over the whole bounds, each extra card costs texels only
 where unseen surface is.
 
-Coverage is measured on the captured texels: the share of area-weighted front-face samples that
+Both sides of a face are surface unless it belongs to a closed part (geometry.orient_triangles),
+whose backs are its inside: Cycles and EEVEE shade and emit on both sides, so the back of an open
+sheet (an emissive quad, an imported wall) gets cards too (tests/gpu/test_back_emission.py).
+Coverage is measured on the captured texels: the share of area-weighted surface samples that
 some card texel sees at the sample's depth (within a tolerance that allows for the surface slope
 across a texel).
 """
@@ -49,7 +52,7 @@ class Card:
     normal: Optional[np.ndarray] = None     # (h, w, 3) unit local-space normal (0 where empty)
     depth: Optional[np.ndarray] = None      # (h, w) metres from the near plane (0 where empty)
     emissive: Optional[np.ndarray] = None   # (h, w, 3) linear RGB x strength
-    opacity: Optional[np.ndarray] = None    # (h, w) 1 where a front face was hit
+    opacity: Optional[np.ndarray] = None    # (h, w) 1 where a surface side was hit
 
     @property
     def size(self) -> np.ndarray:
