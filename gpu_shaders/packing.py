@@ -20,7 +20,9 @@ Three arrays, all uploaded as they are by `resources.py` (x fastest, C order of 
   stores distance minus half a voxel): inside the SDF volume a sample far from the surface reads
   the clamped band, less than the bounds' distance, which once made the sphere hold the whole
   volume (1.5 m around a 0.25 m icosphere at 8 voxels/m: every neighbour was visited at every
-  sample). The object grid (object_grid.py) lists objects by the same bounds.
+  sample). The object grid (object_grid.py) lists objects by the same bounds; 9 = (thin-wall
+  margin in voxels, 0, 0, 0): `thin_voxels`, what the shadow cones (light_lib.glsl) add to
+  this object's surfaces.
 
 Integers stored in float texels (grid, offsets) are exact below 2^24; packing checks that.
 """
@@ -32,7 +34,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 BRICK = 8
-OBJECT_TEXELS = 9
+OBJECT_TEXELS = 10
+THIN_VOXELS = 0.5                # light_lib.glsl's thin-wall rule: occluders half a voxel thicker
+# A thick mesh's margin: the trilinear field reads a right-angled convex edge up to 0.3 voxel
+# away (samples half a voxel either side: (0.71 + 0.5 + 0.5 - 0.5) / 4), so silhouettes shrink
+# by that much without it. tests/gpu/test_direct_light.py (box on a floor against Cycles, relMSE
+# sun / point / spot / area): margin 0.5: 0.0024 / 0.0054 / 0.0038 / 0.0070; 0: 0.0494 (shadow
+# edge pixels lit) / 0.0062 / 0.0026 / 0.0026; 0.25: 0.0010 / 0.0012 / 0.0010 / 0.0030.
+EDGE_VOXELS = 0.25
 MAX_BRICKS_PER_AXIS = 256        # 2048 texels: the smallest 3D texture limit of GL 4.5 drivers
 PARKED = 1e30                    # bounding-sphere centre of an instance left out (singular transform)
 INDIRECTION_WIDTH = 4096
@@ -96,8 +105,51 @@ def local_to_world_scale(matrix_world) -> float:
     return float(np.linalg.svd(np.asarray(matrix_world, np.float64)[:3, :3], compute_uv=False).min())
 
 
+def thin_voxels(sdf, mip: int = 0) -> float:
+    """The thin-wall margin of mesh `sdf` in voxels: THIN_VOXELS unless the field shows no
+    surface thinner than a voxel, then EDGE_VOXELS.
+
+    A wall thinner than a voxel has no sample half a voxel inside it: the trilinear field over
+    it stays above zero, so shadow cones count occluders half a voxel thicker to be stopped by
+    it. Where every surface has depth, the field crosses zero at the surface and the margin
+    only shrinks openings: half a voxel off each side of a window (5 cm voxels, a 1 m window:
+    the sun patch 19% too dark, bench/bias_by_bounce.py). What a thick mesh keeps, EDGE_VOXELS,
+    is the trilinear field's rounding of convex edges (see there). Test, per brick, every sample just
+    outside a surface (0 <= d < 0.6 voxel; the brick's border samples, whose neighbourhood it
+    cuts, are not tested): by a surface with depth one of its 26 neighbours (1 to sqrt(3)
+    voxels away, one within 35 degrees of any direction) lies at least 0.8 voxel lower; across
+    a wall of thickness T the field falls by at most 2 d - 1 + T < 0.8 voxel when T < 0.6
+    voxel, and at least 1.6 voxels of depth are needed for the fall. More than 1% of such
+    samples without it (or none at all, or a two-sided mesh) keep the margin. Memoised on the
+    mesh."""
+    memo = getattr(sdf, "_thin_voxels", None)
+    if memo is not None and memo[0] == mip:
+        return memo[1]
+    m = sdf.mips[mip]
+    thin = THIN_VOXELS
+    if not sdf.two_sided and len(m.bricks):
+        v = (np.asarray(m.bricks, np.float32) - 127.5) / 127.5 * (m.band / m.voxel_size)
+        c = v[:, 1:-1, 1:-1, 1:-1]
+        low = np.full(c.shape, np.inf, np.float32)
+        n = BRICK - 1
+        for dx in (0, 1, 2):
+            for dy in (0, 1, 2):
+                for dz in (0, 1, 2):
+                    if (dx, dy, dz) != (1, 1, 1):
+                        np.minimum(low, v[:, dx:dx + n - 1, dy:dy + n - 1, dz:dz + n - 1], out=low)
+        near = (c >= 0.0) & (c < 0.6)
+        shallow = near & (low > c - 0.8)
+        if near.any() and shallow.sum() <= 0.01 * near.sum():
+            thin = EDGE_VOXELS
+    try:
+        sdf._thin_voxels = (mip, thin)
+    except AttributeError:
+        pass
+    return thin
+
+
 def object_row(world_to_local, origin, voxel_size, brick_grid, band, bounds_min, bounds_max,
-               indirection_offset, distance_scale) -> np.ndarray:
+               indirection_offset, distance_scale, thin=THIN_VOXELS) -> np.ndarray:
     row = np.zeros((OBJECT_TEXELS, 4), np.float64)
     row[0:4] = np.asarray(world_to_local, np.float64)
     row[4] = (*origin, voxel_size)
@@ -113,6 +165,7 @@ def object_row(world_to_local, origin, voxel_size, brick_grid, band, bounds_min,
     centre = l2w[:3, :3] @ ((lo + hi) / 2) + l2w[:3, 3]
     sigma_max = float(np.linalg.svd(l2w[:3, :3], compute_uv=False).max())
     row[8] = (*centre, sigma_max * float(np.linalg.norm(hi - lo)) / 2 * (1 + 1e-5) + 1e-6)
+    row[9] = (thin, 0.0, 0.0, 0.0)
     return row.astype(np.float32)
 
 
@@ -139,7 +192,8 @@ def instance_row(sdf, matrix_world, indirection_offset: int, mip: int = 0) -> np
         row[8] = (PARKED, PARKED, PARKED, 0.0)
         return row
     return object_row(np.linalg.inv(mw), sdf.origin, m.voxel_size, m.brick_grid, m.band,
-                      sdf.bounds_min, sdf.bounds_max, indirection_offset, local_to_world_scale(mw))
+                      sdf.bounds_min, sdf.bounds_max, indirection_offset, local_to_world_scale(mw),
+                      thin_voxels(sdf, mip))
 
 
 def pack_scene(meshes: dict, instances, mip: int = 0, indirection_width: int = INDIRECTION_WIDTH) -> PackedScene:

@@ -14,7 +14,10 @@ texels). Repeat until coverage reaches the target or the card limit (UE: 12 by d
 most). Compared with depth-peeled layers over the whole bounds, each extra card costs texels only
 where unseen surface is.
 
-Coverage is measured on the captured texels: the share of area-weighted front-face samples that
+Both sides of a face are surface unless it belongs to a closed part (geometry.orient_triangles),
+whose backs are its inside: Cycles and EEVEE shade and emit on both sides, so the back of an open
+sheet (an emissive quad, an imported wall) gets cards too (tests/gpu/test_back_emission.py).
+Coverage is measured on the captured texels: the share of area-weighted surface samples that
 some card texel sees at the sample's depth (within a tolerance that allows for the surface slope
 across a texel).
 """
@@ -25,7 +28,7 @@ from typing import Optional
 
 import numpy as np
 
-from .geometry import MeshError, clean_mesh
+from .geometry import CLOSED, MeshError, clean_mesh
 from .materials import Material, shade
 
 AXES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], np.float64)
@@ -49,7 +52,7 @@ class Card:
     normal: Optional[np.ndarray] = None     # (h, w, 3) unit local-space normal (0 where empty)
     depth: Optional[np.ndarray] = None      # (h, w) metres from the near plane (0 where empty)
     emissive: Optional[np.ndarray] = None   # (h, w, 3) linear RGB x strength
-    opacity: Optional[np.ndarray] = None    # (h, w) 1 where a front face was hit
+    opacity: Optional[np.ndarray] = None    # (h, w) 1 where a surface side was hit
 
     @property
     def size(self) -> np.ndarray:
@@ -78,7 +81,7 @@ class _Surface:
     faces hiding its samples). finish() moves the cards back to mesh space.
     """
 
-    def __init__(self, v, t, samples, seed=0, two_sided=False):
+    def __init__(self, v, t, samples, seed=0, two_sided=False, open_faces=None):
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
 
@@ -94,6 +97,16 @@ class _Surface:
         self.face_normal = cross / np.maximum(area, 1e-300)[:, None]
         self.area = area
         self.two_sided = bool(two_sided)
+        # Faces whose back is surface too: every face of a two-sided mesh, else the faces of open
+        # parts (geometry.orient_triangles: OPEN / NON_ORIENTABLE). Cycles and EEVEE shade and
+        # emit on both sides of every face; only a closed part hides its backs (its inside). An
+        # emissive quad lights the ceiling above it with its back as much as the room below.
+        if self.two_sided:
+            self.both = np.ones(len(t), bool)
+        elif open_faces is not None:
+            self.both = np.asarray(open_faces, bool).copy()
+        else:
+            self.both = np.zeros(len(t), bool)
         self.p, self.n = self.sample(samples, seed)
         self.bmin, self.bmax = used.min(axis=0) - self.offset, used.max(axis=0) - self.offset
         self.eps = 1e-5 * float(np.max(self.bmax - self.bmin) or 1.0)
@@ -107,8 +120,9 @@ class _Surface:
         p = (pt[:, 0] * (1 - r1)[:, None] + pt[:, 1] * (r1 * (1 - r2))[:, None]
              + pt[:, 2] * (r1 * r2)[:, None])
         n = self.face_normal[ids]
-        if self.two_sided:       # both sides are surface: half the samples look the other way
-            n = np.where((np.arange(count) % 2 == 0)[:, None], n, -n)
+        # both sides are surface: half the samples look the other way
+        back = self.both[ids] & (np.arange(count) % 2 == 1)
+        n = np.where(back[:, None], -n, n)
         return p, n
 
     def blocker_distance(self, idx, axis):
@@ -250,9 +264,10 @@ def capture(surface: _Surface, cards, normals=None, uvs=None, material_ids=None,
         prim = r["primID"]
         hit = np.flatnonzero(prim >= 0)
         facing = surface.face_normal[prim[hit]] @ AXES[c.axis]
-        if not surface.two_sided:
-            # Only front faces belong to this card; a back face means we are looking from inside.
-            hit, facing = hit[facing < 0], facing[facing < 0]
+        # Front faces belong to this card, back faces only where the back is surface (open
+        # parts, two-sided meshes): a closed part's back face means we are looking from inside.
+        keep = (facing < 0) | surface.both[prim[hit]]
+        hit, facing = hit[keep], facing[keep]
         pid = prim[hit]
         bu, bv = r["u"][hit].astype(np.float64), r["v"][hit].astype(np.float64)
         bary = np.stack([1 - bu - bv, bu, bv], axis=1)
@@ -384,5 +399,6 @@ def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=
         material_ids = np.clip(material_ids.astype(np.int64), 0, len(mats) - 1)
     if uvs is None and any(m.base_color_texture is not None or m.emission_texture is not None for m in mats):
         warnings.append("a material has a texture but the mesh has no UVs: base colour used instead")
-    surface = _Surface(mesh.vertices, mesh.triangles, samples, seed, two_sided)
+    open_faces = None if mesh.orientation is None else mesh.orientation.part != CLOSED
+    surface = _Surface(mesh.vertices, mesh.triangles, samples, seed, two_sided, open_faces)
     return surface, {"normals": normals, "uvs": uvs, "material_ids": material_ids, "materials": mats}, warnings

@@ -2,10 +2,11 @@
  * sdf_lib.glsl). Shared by the per-pixel direct pass and the surface cache.
  *
  * Inputs: sampler2D lights (RGBA32F, 4 texels per light row, operators/lights.py).
- * Shadows: SDF cone tracing, visibility = min over steps of k * (d - 0.5 voxel) / t (k from the
+ * Shadows: SDF cone tracing, visibility = min over steps of k * (d - m voxel) / t (k from the
  * light's angular size, 1 / tan(half angle), clamped to [2, 256]: Blender's default sun is 215,
  * a clamp at 16 spread its penumbra over 20 cm at 3 m and halved a window's sun patch; the half
- * voxel is the thin-wall rule: a wall thinner than a voxel never reaches d = 0), from the surface
+ * voxel m is the thin-wall rule: a wall thinner than a voxel never reaches d = 0; m = 0.25 on a
+ * mesh with depth under every surface, light_thin), from the surface
  * itself (cone_visibility: samples that only leave the receiver's own surface do not occlude;
  * the earlier start one voxel along the normal shifted shadows: sun relMSE 0.0125 against
  * 0.0024 in tests/gpu/test_direct_light.py), then smoothstep.
@@ -20,6 +21,15 @@
 vec4 light_texel(int i, int t)
 {
   return texelFetch(lights, ivec2(t, i), 0);
+}
+
+/* The thin-wall margin (voxels) of the object nearest a cone sample: THIN_VOXELS, or 0.25 (the
+ * field's rounding of convex edges) for a mesh whose field has depth under every surface
+ * (gpu_shaders/packing.py thin_voxels: there the field crosses zero at the surface, and the half
+ * voxel only shrank openings: a window's sun patch lost 19%). */
+float light_thin(int obj)
+{
+  return obj >= 0 ? sdf_object_texel(obj, 9).x : THIN_VOXELS;
 }
 
 /* t_shell: where the receiver's own half-voxel shell ends along dir (0 for the lights' narrow
@@ -74,7 +84,7 @@ float cone_visibility_shell(vec3 p, vec3 n, vec3 dir, float t_max, float k, floa
      * field there is clamped to the band, a lower bound) says nothing about a wide cone: k x
      * band / t would shrink with t alone and darken open sky (a sphere lost 10% of it) */
     if (t_shell <= 0.0 || d < (SDF_BAND_VOXELS - 0.5) * hv) {
-      vis = min(vis, k * (d + lift - THIN_VOXELS * hv) / max(t - t_shell, 0.25 * t));
+      vis = min(vis, k * (d + lift - light_thin(nearest) * hv) / max(t - t_shell, 0.25 * t));
     }
     if (vis <= 0.0) {
       return 0.0;

@@ -19,7 +19,7 @@
 #define SDF_BRICK 8
 #define SDF_BRICK_CELLS 7
 #define SDF_INVALID_INSIDE -2
-#define SDF_OBJECT_TEXELS 9
+#define SDF_OBJECT_TEXELS 10
 
 int sdf_object_count()
 {

@@ -155,12 +155,21 @@ def test_bad_attributes_fall_back_with_warnings():
         bake_mesh_cards(np.array([[0, 0, 0], [1, 0, 0], [2, 0, 0.0]]), np.array([[0, 1, 2]]))
 
 
-def test_two_sided_sheet_is_captured_from_both_sides():
+def test_sheet_is_captured_from_both_sides():
+    """An open sheet's back is surface, two-sided or not (Cycles and EEVEE shade and emit on both
+    sides of a face; only a closed part hides its backs, its inside)."""
     v, f, _ = plane()
-    one = bake_mesh_cards(v, f, texel_density=20)
-    both = bake_mesh_cards(v, f, texel_density=20, two_sided=True)
-    assert [AXES[c.axis][2] for c in one.cards] == [-1.0]          # only the top is surface
-    assert sorted(AXES[c.axis][2] for c in both.cards) == [-1.0, 1.0]
-    assert both.coverage == 1.0
-    for c in both.cards:                                             # normals face each card
+    for mc in (bake_mesh_cards(v, f, texel_density=20),
+               bake_mesh_cards(v, f, texel_density=20, two_sided=True)):
+        assert sorted(AXES[c.axis][2] for c in mc.cards) == [-1.0, 1.0]
+        assert mc.coverage == 1.0
+        for c in mc.cards:                                           # normals face each card
+            assert np.allclose(c.normal[c.opacity > 0], -AXES[c.axis])
+
+
+def test_closed_mesh_hides_its_backs():
+    v, f = shapes.box()
+    mc = bake_mesh_cards(v, f, texel_density=10)
+    assert sorted(c.axis for c in mc.cards) == list(range(6))
+    for c in mc.cards:                                               # outside faces only
         assert np.allclose(c.normal[c.opacity > 0], -AXES[c.axis])
