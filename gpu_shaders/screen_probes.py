@@ -3,10 +3,17 @@ gather of indirect light for every pixel, from few probes.
 
 Per frame, one GLSL pass each:
     screen_probe_place      one probe per tile x tile pixels on a jittered G-buffer pixel
+    screen_probe_rays       importance sampling (from the second frame): per probe, which
+                            texel or texel quarter each of its res^2 ray slots traces, by the
+                            BRDF of the pixels around it x last frame's radiance of the nearest
+                            history probe (ray redistribution: 4 low-pdf texels share a ray,
+                            its 3 slots supersample a high-pdf texel)
     screen_probe_trace      res x res octahedral rays per probe (whole sphere, world directions,
                             jittered per frame) through gi_trace_lib: surface cache at hits, sky;
                             with the world radiance cache (radiance_cache.py) rays trace ~2 m,
                             then the cache's update and resolve passes give the far field
+    screen_probe_compose    (importance sampling) the texel atlas from the slots, weighted so
+                            each texel's estimate stays unbiased
     screen_probe_links      which of its 3x3 neighbours each probe sees (short SDF rays, once
                             per probe)
     screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
@@ -39,6 +46,8 @@ class ScreenProbes:
         self.history = None          # RGBA32F [h, w]: accumulated E
         self.frames = 0              # frames in the history
         self.textures = {}
+        self.prev = None             # last frame's probes (info, normal, filtered): the prior
+        self.zero_rays = None        # the slot table without importance sampling (all own texel)
 
     def jitter(self, frame: int):
         """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets."""
@@ -49,12 +58,14 @@ class ScreenProbes:
 
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
                voxels=None, rcache=None, rc_budget: int = 0, rc_blend: float = 0.25,
-               rc_retrace=None):
+               rc_retrace=None, importance: bool = True):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
         0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
         (None: refined on the mesh SDFs). rcache: radiance_cache.RadianceCache (None: off): rays
         trace ~2 m and take the far field from it, `rc_budget` cache probes traced (new first),
-        of them at most `rc_retrace` re-traced."""
+        of them at most `rc_retrace` re-traced. importance: importance-sample the probes' rays
+        from last frame's probes (screen_probe_rays; needs res == compute.GROUP, one work group
+        per probe; the first frame after a reset traces uniform rays)."""
         gw, gh = self.grid
         r = self.res
         tile_j, ray_j = self.jitter(frame)
@@ -74,18 +85,31 @@ class ScreenProbes:
         sh.image("probe_normal_out", tex["normal"])
         compute.dispatch(sh, gw, gh)
 
+        sampled = importance and self.prev is not None and r == compute.GROUP
+        if sampled:
+            self._plan_rays(gbuf, cam_pos, frame)
+        else:
+            if self.zero_rays is None:
+                self.zero_rays = compute.texture((gw * r, gh * r), 'R32F')
+            tex["rays"] = self.zero_rays
+            for k in ("plan", "prior", "traced"):
+                tex.pop(k, None)
+        self.sampled = sampled
+
         tex["radiance"] = compute.texture((gw * r, gh * r))
-        sh = compute.shader("screen_probe_trace", samplers=("probe_info", "probe_normal") + VL,
+        sh = compute.shader("screen_probe_trace",
+                            samplers=("probe_info", "probe_normal", "probe_rays") + VL,
                             images=("out_image", ("rc_marks", 'R32F')),
                             push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'), ('FLOAT', 't_max'),
                                   radiance_cache.CAMERA, ('INT', 'rc_frame')),
-                            libs=GI_LIBS + radiance_cache.MARK, scene=True, surface_cache=True,
-                            global_sdf=True)
+                            libs=GI_LIBS + ("screen_probe_ray_lib.glsl",) + radiance_cache.MARK,
+                            scene=True, surface_cache=True, global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
         sh.uniform_sampler("probe_info", tex["info"])
         sh.uniform_sampler("probe_normal", tex["normal"])
+        sh.uniform_sampler("probe_rays", tex["rays"])
         sky.bind(sh)
         held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
         sh.uniform_int("probe_res", r)
@@ -101,6 +125,18 @@ class ScreenProbes:
             rcache.update(resources, gsdf, cache, sky, voxels, cam_pos, frame, t_max, rc_budget,
                           rc_blend, rc_retrace)
             rcache.resolve(resources, gsdf, cache, sky, voxels, tex, r, ray_j, cam_pos, t_max)
+        if sampled:       # the slots -> unbiased texel estimates
+            tex["traced"] = tex["radiance"]
+            tex["radiance"] = compute.texture((gw * r, gh * r))
+            sh = compute.shader("screen_probe_compose",
+                                samplers=("probe_traced", "probe_plan", "probe_prior"),
+                                push=(('INT', 'probe_res'),), libs=("octahedral_lib.glsl",))
+            sh.uniform_sampler("probe_traced", tex["traced"])
+            sh.uniform_sampler("probe_plan", tex["plan"])
+            sh.uniform_sampler("probe_prior", tex["prior"])
+            sh.uniform_int("probe_res", r)
+            sh.image("out_image", tex["radiance"])
+            compute.dispatch(sh, gw * r, gh * r)
 
         tex["links"] = compute.texture((gw, gh), 'R32F')
         sh = compute.shader("screen_probe_links", samplers=("probe_info", "probe_normal"),
@@ -125,6 +161,7 @@ class ScreenProbes:
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.image("out_image", tex["filtered"])
         compute.dispatch(sh, gw * r, gh * r)
+        self.prev = {k: tex[k] for k in ("info", "normal", "filtered")}   # next frame's prior
 
         tex["sh"] = compute.texture((gw * 3, gh * 3))
         sh = compute.shader("screen_probe_sh", samplers=("probe_info", "probe_filtered"),
@@ -166,6 +203,39 @@ class ScreenProbes:
         compute.dispatch(sh, self.width, self.height)
         return tex["integrated"]
 
+    def _plan_rays(self, gbuf: dict, cam_pos, frame: int):
+        """screen_probe_rays: tex['rays'] (slot codes), ['plan'], ['prior'] from the G-buffer's
+        normals around each probe and last frame's probes (self.prev)."""
+        gw, gh = self.grid
+        r = self.res
+        g = gbuf["textures"]
+        tex = self.textures
+        tex["rays"] = compute.texture((gw * r, gh * r), 'R32F')
+        tex["plan"] = compute.texture((gw * r, gh * r))
+        tex["prior"] = compute.texture((gw * r, gh * r))
+        sh = compute.shader("screen_probe_rays",
+                            samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
+                                      "hist_info", "hist_normal", "hist_radiance"),
+                            images=(("out_image", 'R32F'), "probe_plan", "probe_prior"),
+                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'probe_res'),
+                                  ('INT', 'frame')),
+                            libs=("sampling_lib.glsl", "octahedral_lib.glsl"))
+        sh.uniform_sampler("gbuf_position", g["position"])
+        sh.uniform_sampler("gbuf_normal", g["normal"])
+        sh.uniform_sampler("probe_info", tex["info"])
+        sh.uniform_sampler("probe_normal", tex["normal"])
+        sh.uniform_sampler("hist_info", self.prev["info"])
+        sh.uniform_sampler("hist_normal", self.prev["normal"])
+        sh.uniform_sampler("hist_radiance", self.prev["filtered"])
+        sh.uniform_float("cam_pos", compute.vec(cam_pos))
+        sh.uniform_int("probe_tile", self.tile)
+        sh.uniform_int("probe_res", r)
+        sh.uniform_int("frame", int(frame))
+        sh.image("out_image", tex["rays"])
+        sh.image("probe_plan", tex["plan"])
+        sh.image("probe_prior", tex["prior"])
+        compute.run(sh, gw, gh)          # one work group (res x res) per probe
+
     def temporal(self, new, blend: float):
         """history = mix(history, new, blend) (blend 1 or no history: start again)."""
         if self.history is None or blend >= 1.0:
@@ -186,6 +256,9 @@ class ScreenProbes:
         """GPU bytes of the probe textures (RGBA32F, the links R32F) and the history."""
         out = {"probes_" + k: t.width * t.height * (4 if t.format == 'R32F' else 16)
                for k, t in self.textures.items()}
+        if self.prev is not None:
+            out["probes_prior"] = out.get("probes_prior", 0) + sum(
+                t.width * t.height * 16 for k, t in self.prev.items() if k == "filtered")
         if self.history is not None:
             out["probes_history"] = self.width * self.height * 16
         return out
