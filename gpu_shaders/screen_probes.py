@@ -46,7 +46,7 @@ class ScreenProbes:
         self.history = None          # RGBA32F [h, w]: accumulated E
         self.frames = 0              # frames in the history
         self.textures = {}
-        self.prev = None             # last frame's probes (info, normal, filtered): the prior
+        self.prev = None             # last frame's probes (info, normal, history): the prior
         self.zero_rays = None        # the slot table without importance sampling (all own texel)
 
     def jitter(self, frame: int):
@@ -128,15 +128,20 @@ class ScreenProbes:
         if sampled:       # the slots -> unbiased texel estimates
             tex["traced"] = tex["radiance"]
             tex["radiance"] = compute.texture((gw * r, gh * r))
+            tex["history"] = compute.texture((gw * r, gh * r))
             sh = compute.shader("screen_probe_compose",
                                 samplers=("probe_traced", "probe_plan", "probe_prior"),
+                                images=("out_image", "probe_history_out"),
                                 push=(('INT', 'probe_res'),), libs=("octahedral_lib.glsl",))
             sh.uniform_sampler("probe_traced", tex["traced"])
             sh.uniform_sampler("probe_plan", tex["plan"])
             sh.uniform_sampler("probe_prior", tex["prior"])
             sh.uniform_int("probe_res", r)
             sh.image("out_image", tex["radiance"])
+            sh.image("probe_history_out", tex["history"])
             compute.dispatch(sh, gw * r, gh * r)
+        else:
+            tex["history"] = tex["radiance"]
 
         tex["links"] = compute.texture((gw, gh), 'R32F')
         sh = compute.shader("screen_probe_links", samplers=("probe_info", "probe_normal"),
@@ -161,7 +166,7 @@ class ScreenProbes:
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.image("out_image", tex["filtered"])
         compute.dispatch(sh, gw * r, gh * r)
-        self.prev = {k: tex[k] for k in ("info", "normal", "filtered")}   # next frame's prior
+        self.prev = {k: tex[k] for k in ("info", "normal", "history")}   # next frame's prior
 
         tex["sh"] = compute.texture((gw * 3, gh * 3))
         sh = compute.shader("screen_probe_sh", samplers=("probe_info", "probe_filtered"),
@@ -226,7 +231,7 @@ class ScreenProbes:
         sh.uniform_sampler("probe_normal", tex["normal"])
         sh.uniform_sampler("hist_info", self.prev["info"])
         sh.uniform_sampler("hist_normal", self.prev["normal"])
-        sh.uniform_sampler("hist_radiance", self.prev["filtered"])
+        sh.uniform_sampler("hist_radiance", self.prev["history"])
         sh.uniform_float("cam_pos", compute.vec(cam_pos))
         sh.uniform_int("probe_tile", self.tile)
         sh.uniform_int("probe_res", r)
@@ -254,11 +259,11 @@ class ScreenProbes:
 
     def stats(self) -> dict:
         """GPU bytes of the probe textures (RGBA32F, the links R32F) and the history."""
-        out = {"probes_" + k: t.width * t.height * (4 if t.format == 'R32F' else 16)
-               for k, t in self.textures.items()}
-        if self.prev is not None:
-            out["probes_prior"] = out.get("probes_prior", 0) + sum(
-                t.width * t.height * 16 for k, t in self.prev.items() if k == "filtered")
+        seen, out = set(), {}
+        for k, t in self.textures.items():
+            if id(t) not in seen:        # 'history' is 'radiance' itself without sampling
+                seen.add(id(t))
+                out["probes_" + k] = t.width * t.height * (4 if t.format == 'R32F' else 16)
         if self.history is not None:
             out["probes_history"] = self.width * self.height * 16
         return out

@@ -7,18 +7,23 @@
  *             (the lecture's depth weight > 0.1; the probe's own normal always). The lecture
  *             sums their lobes in SH to save work; a work group per probe has the 64 normals in
  *             shared memory, so each texel takes the exact mean of max(0, n . d) instead.
- *   Lighting: last frame's filtered radiance of the same probe, reprojected: the history probe
+ *   Lighting: last frame's radiance of the same probe (what was traced, screen_probe_compose's
+ *             history: not the unbiased estimate, not filtered), reprojected: the history probe
  *             nearest in world position among the 3x3 around the same tile (within a quarter of
  *             the depth, normals within 60 degrees; none: the probe keeps uniform rays).
- *   pdf = BRDF x (luminance + 0.1 mean + tiny); texels ranked by it. The c texels below
- *   CULL_FRACTION of the mean pdf make g = min(c / 4, res^2 - c) groups of the 4 lowest; each
- *   group traces one ray (in one member drawn at random), its other 3 slots supersample one of
- *   the g highest-pdf texels with a 2x2 quarter each: the ray count per probe stays res^2.
+ *   The c texels whose BRDF is below CULL_FRACTION of its mean (the far side of the pixels'
+ *   planes) make g = min(c / 4, res^2 - c) groups of 4; each group traces one ray (in one
+ *   member drawn at random), its other 3 slots supersample one of the g texels of highest
+ *   pdf = BRDF x (luminance, dilated by a texel, + the probe's mean luminance) with a 2x2
+ *   quarter each: the ray count per probe stays res^2. Lighting only orders the supersampling,
+ *   it culls nothing: UE also culls by lighting (and drops the light a stale prior missed);
+ *   unbiased, a culled texel that meets a light the prior missed costs 4 L - 3 prior (measured:
+ *   a small bright patch then raised the variance 1.5x instead of lowering it).
  * Unbiased (screen_probe_compose): a supersampled texel is the solid-angle mean of its 4
  * quarters; a culled texel is prior + 4 [drawn] (L - prior), whose expectation over the draw is
  * L's, and which is exactly L when the prior is (a uniform sky furnace stays exact).
  * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, hist_info, hist_normal,
- * hist_radiance (last frame's probe_info, probe_normal, filtered atlas); cam_pos, probe_tile,
+ * hist_radiance (last frame's probe_info, probe_normal, radiance history); cam_pos, probe_tile,
  * probe_res, frame.
  * Outputs: out_image (R32F, the slot codes of screen_probe_ray_lib.glsl), probe_plan (per texel:
  * x kind 0 one ray / 1 supersampled / 2 culled, y..w: a supersampled texel's 3 donor slots, a
@@ -31,6 +36,7 @@ shared vec3 s_normal[RAYS_MAX];
 shared float s_accept[RAYS_MAX];
 shared float s_lum[RAYS_MAX];
 shared float s_pdf[RAYS_MAX];
+shared float s_brdf[RAYS_MAX];
 shared int s_texel_of_rank[RAYS_MAX];
 
 uint screen_probe_draw(ivec2 pr, int group)
@@ -110,21 +116,32 @@ void main()
     mean_lum += s_lum[j];
   }
   brdf /= max(wsum, 1.0);
+  s_brdf[t] = brdf;
   mean_lum /= float(n);
-  float pdf = brdf * (s_lum[t] + 0.1 * mean_lum + 1e-6);
+  float lum = 0.0;       /* dilated by a texel: next frame's jitter can move a feature across */
+  for (int dy = -1; dy <= 1; dy++) {
+    for (int dx = -1; dx <= 1; dx++) {
+      ivec2 q = clamp(texel + ivec2(dx, dy), ivec2(0), ivec2(probe_res - 1));
+      lum = max(lum, s_lum[q.x + q.y * probe_res]);
+    }
+  }
+  barrier();
+  float mean_brdf = 0.0;
+  for (int j = 0; j < n; j++) {
+    mean_brdf += s_brdf[j];
+  }
+  mean_brdf /= float(n);
+  /* culled texels rank first (key -1), the rest by pdf */
+  float pdf = brdf < CULL_FRACTION * mean_brdf ? -1.0 : brdf * (lum + mean_lum + 1e-6);
   s_pdf[t] = pdf;
   barrier();
 
-  float total = 0.0;
   int rank = 0;
-  for (int j = 0; j < n; j++) {
-    float p = s_pdf[j];
-    total += p;
-    rank += (p < pdf || (p == pdf && j < t)) ? 1 : 0;
-  }
   int culled = 0;
   for (int j = 0; j < n; j++) {
-    culled += s_pdf[j] < CULL_FRACTION * total / float(n) ? 1 : 0;
+    float p = s_pdf[j];
+    rank += (p < pdf || (p == pdf && j < t)) ? 1 : 0;
+    culled += p < 0.0 ? 1 : 0;
   }
   int g = use ? min(culled / 4, n - culled) : 0;
   s_texel_of_rank[rank] = t;

@@ -6,9 +6,10 @@ subprocess). ScreenProbes.gather is wrapped to read back every frame's gather (t
   every interpolated pixel's E is pi L, frame by frame (screen_probe_sh projects the probe's mean
   exactly). With importance sampling (from the second frame: culled and supersampled texels)
   it stays pi L and equal to uniform rays' E within 1e-4.
-- One bright patch above a floor, black sky: the mean over frames of the gathered E agrees with
-  the brute-force per-pixel gather (GI gather PIXEL, 256 cosine rays per pixel per frame), and the
-  frame-to-frame variance of E is lower than with uniform rays (the same probes, jitter and frames).
+- One bright patch above a floor, black sky: the mean over the probes' 16-frame jitter cycle of
+  the gathered E agrees with the brute-force per-pixel gather (GI gather PIXEL, 256 cosine rays
+  per pixel per frame) and with uniform rays', and the frame-to-frame variance of E is lower
+  than with uniform rays (the same probes, jitter and frames).
 """
 import sys
 from pathlib import Path
@@ -98,18 +99,18 @@ PATCH = COMMON + """
 scene = empty_scene(voxel_density=16.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=4.0)
 bpy.context.object.data.materials.append(principled("Floor", (0.5, 0.5, 0.5)))
-bpy.ops.mesh.primitive_plane_add(size=0.3, location=(0.3, 0.4, 1.0), rotation=(3.14159265, 0, 0))
+bpy.ops.mesh.primitive_plane_add(size=0.4, location=(0.3, 0.4, 1.0), rotation=(3.14159265, 0, 0))
 bpy.context.object.data.materials.append(principled("Patch", (0.0, 0.0, 0.0), emission=(1, 1, 1),
-                                                    strength=40.0))
+                                                    strength=25.0))
 world((0.0, 0.0, 0.0))
 camera((0.0, -2.2, 1.6), (0.0, 0.2, 0.0), lens=28.0)
 res, err = bake()
 assert err is None, err
 out = {}
-for name, cfg in (("uniform", dict(probe_importance=False)),
-                  ("importance", dict(probe_importance=True)),
+for name, cfg in (("uniform", dict(probe_importance=False, probe_tile=8)),
+                  ("importance", dict(probe_importance=True, probe_tile=8)),
                   ("pixel", dict(gather="PIXEL", pixel_rays=256))):
-    E, sampled, kinds = render(64, FRAMES_N if name != "pixel" else 2, **cfg)
+    E, sampled, kinds = render(48, 17 if name != "pixel" else 2, **cfg)
     np.save(name + ".npy", E)
     out[name] = dict(sampled=sampled, kinds=kinds)
 emit(**out)
@@ -141,11 +142,12 @@ def test_furnace_stays_exact(tmp_path):
 
 
 def test_bright_patch_less_variance_same_mean(tmp_path):
-    run = run_python(PATCH.replace("FRAMES_N", "9"), tmp_path, timeout=900)
+    run = run_python(PATCH, tmp_path, timeout=1200)
     assert run.returncode == 0, run.explain()
     r = run.result
-    assert r["importance"]["sampled"][1:] == [True] * 8
-    uni = np.load(tmp_path / "uniform.npy")[1:]          # frame 0 is uniform in both
+    assert r["importance"]["sampled"] == [False] + [True] * 16
+    # frame 0 is uniform in both; frames 1-16: the probes' whole 16-frame jitter cycle
+    uni = np.load(tmp_path / "uniform.npy")[1:]
     imp = np.load(tmp_path / "importance.npy")[1:]
     ref = np.load(tmp_path / "pixel.npy").mean(axis=0)
     floor = (uni[0, ..., 3] > 0.5) & (imp[0, ..., 3] > 0.5)
@@ -158,4 +160,4 @@ def test_bright_patch_less_variance_same_mean(tmp_path):
     print(r["importance"]["kinds"], "var ratio", var_i / var_u, "means", m_ref, m_u, m_i)
     assert var_i < 0.7 * var_u
     assert abs(m_i - m_ref) <= 0.1 * m_ref
-    assert abs(m_i - m_u) <= 0.05 * m_u
+    assert abs(m_i - m_u) <= 0.1 * m_u
