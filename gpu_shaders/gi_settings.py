@@ -51,6 +51,7 @@ class GISettings:
     cache_relax: float = 1.5       # F12: the surface cache's over-relaxation (1: plain bounces)
     radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
     probe_importance: bool = True  # screen-probe rays importance-sampled (BRDF x last radiance)
+    adaptive_probes: bool = True   # probes at 8x8 / 4x4 tiles where interpolation fails
     rc_spacing: float = 0.577      # radiance cache level-0 probe spacing (m): 2 m screen rays
     rc_budget: int = 16            # radiance cache probes traced per viewport frame (new first)
     rc_retrace: int = 8            # of them, at most this many re-traced (least recent first)

@@ -47,6 +47,7 @@ class ScreenProbes:
         self.frames = 0              # frames in the history
         self.textures = {}
         self.prev = None             # last frame's probes (info, normal, history): the prior
+        self.atlas = self.grid       # probe slots: the grid, + adaptive levels (gather)
         self.zero_rays = None        # the slot table without importance sampling (all own texel)
 
     def jitter(self, frame: int):
@@ -58,14 +59,17 @@ class ScreenProbes:
 
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
                voxels=None, rcache=None, rc_budget: int = 0, rc_blend: float = 0.25,
-               rc_retrace=None, importance: bool = True):
+               rc_retrace=None, importance: bool = True, adaptive: bool = True):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
         0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
         (None: refined on the mesh SDFs). rcache: radiance_cache.RadianceCache (None: off): rays
         trace ~2 m and take the far field from it, `rc_budget` cache probes traced (new first),
         of them at most `rc_retrace` re-traced. importance: importance-sample the probes' rays
         from last frame's probes (screen_probe_rays; needs res == compute.GROUP, one work group
-        per probe; the first frame after a reset traces uniform rays)."""
+        per probe; the first frame after a reset traces uniform rays). adaptive: probes at 8x8
+        and 4x4 pixel tiles where the uniform ones do not interpolate a pixel
+        (screen_probe_adaptive), traced and filtered in the same atlas, in place of most of
+        the integrate pass's per-pixel fallback rays."""
         gw, gh = self.grid
         r = self.res
         tile_j, ray_j = self.jitter(frame)
@@ -84,19 +88,50 @@ class ScreenProbes:
         sh.image("out_image", tex["info"])
         sh.image("probe_normal_out", tex["normal"])
         compute.dispatch(sh, gw, gh)
+        if adaptive:       # the atlas grows by the 8x8 and 4x4 levels below the uniform probes
+            aw, ah = 4 * gw, 7 * gh
+            tex["uniform_info"], tex["uniform_normal"] = tex["info"], tex["normal"]
+            tex["info"] = compute.texture((aw, ah))
+            tex["normal"] = compute.texture((aw, ah))
+            sh = compute.shader("screen_probe_adaptive",
+                                samplers=("gbuf_position", "gbuf_normal", "probe_uniform",
+                                          "probe_uniform_normal"),
+                                images=("out_image", "probe_normal_out"),
+                                push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'),
+                                      ('VEC2', 'tile_jitter'), ('INT', 'uniform_rows')),
+                                libs=("probe_interp_lib.glsl",))
+            sh.uniform_sampler("gbuf_position", g["position"])
+            sh.uniform_sampler("gbuf_normal", g["normal"])
+            sh.uniform_sampler("probe_uniform", tex["uniform_info"])
+            sh.uniform_sampler("probe_uniform_normal", tex["uniform_normal"])
+            sh.uniform_float("cam_pos", compute.vec(cam_pos))
+            sh.uniform_int("probe_tile", self.tile)
+            sh.uniform_float("tile_jitter", [float(tile_j[0]), float(tile_j[1])])
+            sh.uniform_int("uniform_rows", gh)
+            sh.image("out_image", tex["info"])
+            sh.image("probe_normal_out", tex["normal"])
+            compute.dispatch(sh, aw, ah)
+        else:
+            aw, ah = gw, gh
+            tex.pop("uniform_info", None)
+            tex.pop("uniform_normal", None)
+        if self.prev is not None and self.prev["info"].width != aw:
+            self.prev = None               # adaptive probes switched: no prior this frame
+        self.atlas = (aw, ah)
 
         sampled = importance and self.prev is not None and r == compute.GROUP
         if sampled:
             self._plan_rays(gbuf, cam_pos, frame)
         else:
-            if self.zero_rays is None:
-                self.zero_rays = compute.texture((gw * r, gh * r), 'R32F')
+            if self.zero_rays is None or self.zero_rays.width != aw * r \
+                    or self.zero_rays.height != ah * r:
+                self.zero_rays = compute.texture((aw * r, ah * r), 'R32F')
             tex["rays"] = self.zero_rays
             for k in ("plan", "prior", "traced"):
                 tex.pop(k, None)
         self.sampled = sampled
 
-        tex["radiance"] = compute.texture((gw * r, gh * r))
+        tex["radiance"] = compute.texture((aw * r, ah * r))
         sh = compute.shader("screen_probe_trace",
                             samplers=("probe_info", "probe_normal", "probe_rays") + VL,
                             images=("out_image", ("rc_marks", 'R32F')),
@@ -120,15 +155,15 @@ class ScreenProbes:
         else:
             marks = radiance_cache.bind_off(sh)  # noqa: F841 (held until the dispatch)
         sh.image("out_image", tex["radiance"])
-        compute.dispatch(sh, gw * r, gh * r)
+        compute.dispatch(sh, aw * r, ah * r)
         if rcache is not None:    # the far field of the rays that met nothing within ~2 m
             rcache.update(resources, gsdf, cache, sky, voxels, cam_pos, frame, t_max, rc_budget,
                           rc_blend, rc_retrace)
             rcache.resolve(resources, gsdf, cache, sky, voxels, tex, r, ray_j, cam_pos, t_max)
         if sampled:       # the slots -> unbiased texel estimates
             tex["traced"] = tex["radiance"]
-            tex["radiance"] = compute.texture((gw * r, gh * r))
-            tex["history"] = compute.texture((gw * r, gh * r))
+            tex["radiance"] = compute.texture((aw * r, ah * r))
+            tex["history"] = compute.texture((aw * r, ah * r))
             sh = compute.shader("screen_probe_compose",
                                 samplers=("probe_traced", "probe_plan", "probe_prior"),
                                 images=("out_image", "probe_history_out"),
@@ -139,25 +174,29 @@ class ScreenProbes:
             sh.uniform_int("probe_res", r)
             sh.image("out_image", tex["radiance"])
             sh.image("probe_history_out", tex["history"])
-            compute.dispatch(sh, gw * r, gh * r)
+            compute.dispatch(sh, aw * r, ah * r)
         else:
             tex["history"] = tex["radiance"]
 
-        tex["links"] = compute.texture((gw, gh), 'R32F')
+        tex["links"] = compute.texture((aw, ah), 'R32F')
         sh = compute.shader("screen_probe_links", samplers=("probe_info", "probe_normal"),
-                            images=(("out_image", 'R32F'),), scene=True)
+                            images=(("out_image", 'R32F'),), push=(('IVEC2', 'uniform_grid'),),
+                            scene=True)
+        sh.uniform_int("uniform_grid", [gw, gh])
         resources.bind(sh)
         sh.uniform_sampler("probe_info", tex["info"])
         sh.uniform_sampler("probe_normal", tex["normal"])
         sh.image("out_image", tex["links"])
-        compute.dispatch(sh, gw, gh)
+        compute.dispatch(sh, aw, ah)
 
-        tex["filtered"] = compute.texture((gw * r, gh * r))
+        tex["filtered"] = compute.texture((aw * r, ah * r))
         sh = compute.shader("screen_probe_filter",
                             samplers=("probe_info", "probe_normal", "probe_radiance",
                                       "probe_links"),
-                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')),
+                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
+                                  ('IVEC2', 'uniform_grid')),
                             libs=("octahedral_lib.glsl",))
+        sh.uniform_int("uniform_grid", [gw, gh])
         sh.uniform_sampler("probe_links", tex["links"])
         sh.uniform_sampler("probe_info", tex["info"])
         sh.uniform_sampler("probe_normal", tex["normal"])
@@ -165,10 +204,10 @@ class ScreenProbes:
         sh.uniform_int("probe_res", r)
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.image("out_image", tex["filtered"])
-        compute.dispatch(sh, gw * r, gh * r)
+        compute.dispatch(sh, aw * r, ah * r)
         self.prev = {k: tex[k] for k in ("info", "normal", "history")}   # next frame's prior
 
-        tex["sh"] = compute.texture((gw * 3, gh * 3))
+        tex["sh"] = compute.texture((aw * 3, ah * 3))
         sh = compute.shader("screen_probe_sh", samplers=("probe_info", "probe_filtered"),
                             push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')),
                             libs=("octahedral_lib.glsl", "sh_lib.glsl"))
@@ -177,7 +216,7 @@ class ScreenProbes:
         sh.uniform_int("probe_res", r)
         sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
         sh.image("out_image", tex["sh"])
-        compute.dispatch(sh, gw, gh)
+        compute.dispatch(sh, aw, ah)
 
         tex["integrated"] = compute.texture((self.width, self.height))
         sh = compute.shader("screen_probe_integrate",
@@ -185,7 +224,8 @@ class ScreenProbes:
                                       "probe_sh") + VL + radiance_cache.SAMPLERS,
                             images=("out_image", ("rc_marks", 'R32F')),
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
-                                  ('FLOAT', 't_max'), radiance_cache.CAMERA),
+                                  ('FLOAT', 't_max'), radiance_cache.CAMERA,
+                                  ('INT', 'uniform_rows')),
                             libs=("gbuffer_lib.glsl", "sh_lib.glsl", "probe_interp_lib.glsl")
                             + GI_LIBS + radiance_cache.LOOKUP + radiance_cache.MARK,
                             scene=True, surface_cache=True, global_sdf=True)
@@ -203,6 +243,7 @@ class ScreenProbes:
         sh.uniform_sampler("probe_sh", tex["sh"])
         sh.uniform_float("cam_pos", compute.vec(cam_pos))
         sh.uniform_int("probe_tile", self.tile)
+        sh.uniform_int("uniform_rows", gh if adaptive else 0)
         rc_held = radiance_cache.bind_lookup(sh, rcache, cam_pos)  # noqa: F841 (dispatch)
         sh.image("out_image", tex["integrated"])
         compute.dispatch(sh, self.width, self.height)
@@ -211,19 +252,19 @@ class ScreenProbes:
     def _plan_rays(self, gbuf: dict, cam_pos, frame: int):
         """screen_probe_rays: tex['rays'] (slot codes), ['plan'], ['prior'] from the G-buffer's
         normals around each probe and last frame's probes (self.prev)."""
-        gw, gh = self.grid
+        aw, ah = self.atlas
         r = self.res
         g = gbuf["textures"]
         tex = self.textures
-        tex["rays"] = compute.texture((gw * r, gh * r), 'R32F')
-        tex["plan"] = compute.texture((gw * r, gh * r))
-        tex["prior"] = compute.texture((gw * r, gh * r))
+        tex["rays"] = compute.texture((aw * r, ah * r), 'R32F')
+        tex["plan"] = compute.texture((aw * r, ah * r))
+        tex["prior"] = compute.texture((aw * r, ah * r))
         sh = compute.shader("screen_probe_rays",
                             samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
                                       "hist_info", "hist_normal", "hist_radiance"),
                             images=(("out_image", 'R32F'), "probe_plan", "probe_prior"),
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'probe_res'),
-                                  ('INT', 'frame')),
+                                  ('INT', 'frame'), ('INT', 'uniform_rows')),
                             libs=("sampling_lib.glsl", "octahedral_lib.glsl"))
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
@@ -236,10 +277,11 @@ class ScreenProbes:
         sh.uniform_int("probe_tile", self.tile)
         sh.uniform_int("probe_res", r)
         sh.uniform_int("frame", int(frame))
+        sh.uniform_int("uniform_rows", self.grid[1])
         sh.image("out_image", tex["rays"])
         sh.image("probe_plan", tex["plan"])
         sh.image("probe_prior", tex["prior"])
-        compute.run(sh, gw, gh)          # one work group (res x res) per probe
+        compute.run(sh, aw, ah)          # one work group (res x res) per probe
 
     def temporal(self, new, blend: float):
         """history = mix(history, new, blend) (blend 1 or no history: start again)."""

@@ -24,7 +24,8 @@
  * L's, and which is exactly L when the prior is (a uniform sky furnace stays exact).
  * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, hist_info, hist_normal,
  * hist_radiance (last frame's probe_info, probe_normal, radiance history); cam_pos, probe_tile,
- * probe_res, frame.
+ * probe_res, frame, uniform_rows (history probes only from the same block of the atlas:
+ * uniform, adaptive level 1 or 2).
  * Outputs: out_image (R32F, the slot codes of screen_probe_ray_lib.glsl), probe_plan (per texel:
  * x kind 0 one ray / 1 supersampled / 2 culled, y..w: a supersampled texel's 3 donor slots, a
  * culled texel's y = 1 when drawn), probe_prior (the prior radiance, a = its hit distance).
@@ -54,17 +55,25 @@ void main()
   ivec2 tx = pr * probe_res + texel;
   vec4 info = texelFetch(probe_info, pr, 0);
   vec4 pn = texelFetch(probe_normal, pr, 0);
+  if (info.w <= 0.0) {   /* the whole group: an empty slot (adaptive levels are mostly empty) */
+    imageStore(out_image, tx, vec4(0.0));
+    imageStore(probe_plan, tx, vec4(0.0));
+    imageStore(probe_prior, tx, vec4(0.0));
+    return;
+  }
 
   /* the history probe: nearest in world position, same side, near enough */
   bool use = info.w > 0.0;
   ivec2 hq = pr;
   if (use) {
     ivec2 hgrid = textureSize(hist_info, 0);
+    int region = pr.y < uniform_rows ? 0 : (pr.y < 3 * uniform_rows ? 1 : 2);
     float best = 1e30;
     for (int dy = -1; dy <= 1; dy++) {
       for (int dx = -1; dx <= 1; dx++) {
         ivec2 q = pr + ivec2(dx, dy);
-        if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, hgrid))) {
+        int qr = q.y < uniform_rows ? 0 : (q.y < 3 * uniform_rows ? 1 : 2);
+        if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, hgrid)) || qr != region) {
           continue;
         }
         vec4 qi = texelFetch(hist_info, q, 0);
