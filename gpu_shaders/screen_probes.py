@@ -3,6 +3,11 @@ gather of indirect light for every pixel, from few probes.
 
 Per frame, one GLSL pass each:
     screen_probe_place      one probe per tile x tile pixels on a jittered G-buffer pixel
+    screen_probe_adaptive   (adaptive) probes at 8x8, then 4x4 pixel tiles whose jittered pixel
+                            the uniform probes do not interpolate, in the atlas below them
+                            (slots [0, 2gw) x [gh, 3gh) and [0, 4gw) x [3gh, 7gh), mostly empty:
+                            a dense layout needs no atomics; every later pass runs over the
+                            atlas, an empty slot returns at once)
     screen_probe_rays       importance sampling (from the second frame): per probe, which
                             texel or texel quarter each of its res^2 ray slots traces, by the
                             BRDF of the pixels around it x last frame's radiance of the nearest
@@ -18,9 +23,12 @@ Per frame, one GLSL pass each:
                             per probe)
     screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
                             hit-distance clamp, the links
-    screen_probe_sh         9 SH coefficients per probe (exact texel solid angles)
+    screen_probe_sh         9 SH coefficients per probe (exact texel solid angles; the probe's
+                            mean projected exactly: a constant L gives pi L every frame)
     screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, those a wall
-                            hides left out, SH irradiance; a pixel that sees none traces 16 rays
+                            hides left out, SH irradiance; where they fail, the adaptive probes
+                            of the nearest 8x8 and 4x4 tiles on the pixel's plane; a pixel that
+                            still has none traces 16 rays
     screen_probe_temporal   mix with the history (running mean for F12, exponential in the viewport)
 Output: per-pixel indirect irradiance E (W/m^2); the composite divides by pi (Diffuse Indirect).
 Needs a GPU context.
