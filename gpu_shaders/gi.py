@@ -92,6 +92,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         or state.gi_sky != sky.key
     if final or scene_changed or view_key != state.gi_view_key:
         probes.history = None                    # the pixels' history no longer applies
+    if final and hasattr(probes, "prev"):
+        probes.prev = None       # no importance-sampling prior from before (deterministic F12)
     rcache = (_radiance_cache(state, gi)          # the screen probes' far field (not VXGI's)
               if gi.radiance_cache and gi.gather == "PROBES" and gather is None else None)
     if final or scene_changed:
@@ -160,10 +162,15 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 # F12: every cache probe traced every gathered frame, texels a running mean
                 # (as the screen probes' own rays are: the same image quality); viewport: the
                 # budget, new probes first, exponential
+<<<<<<< HEAD
                 rc = {}
                 if screen is not None and probes.history is not None:
                     screen.light(direct, probes.history, sky)   # last gather's light
                     rc["screen"] = screen
+=======
+                rc = {} if gather is not None else {"importance": gi.probe_importance,
+                                                 "adaptive": gi.adaptive_probes}
+>>>>>>> probes
                 if rcache is not None:
                     rc.update(rcache=rcache, rc_budget=gi.rc_budget, rc_blend=0.25,
                               rc_retrace=gi.rc_retrace)

@@ -51,6 +51,10 @@ class GISettings:
     voxel_lighting: bool = True    # far (global-SDF) hits read voxel lighting
     cache_relax: float = 1.5       # F12: the surface cache's over-relaxation (1: plain bounces)
     radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
+    # screen-probe rays importance-sampled (BRDF x last radiance). Off by default: on, quality.py
+    # 128 px relMSE glow 0.0801 -> 0.0861 (gpu_shaders/README: Screen probes)
+    probe_importance: bool = False
+    adaptive_probes: bool = True   # probes at 8x8 / 4x4 tiles where interpolation fails
     rc_spacing: float = 0.577      # radiance cache level-0 probe spacing (m): 2 m screen rays
     rc_budget: int = 16            # radiance cache probes traced per viewport frame (new first)
     rc_retrace: int = 8            # of them, at most this many re-traced (least recent first)

@@ -194,16 +194,17 @@ class RadianceCache:
 
     def resolve(self, resources, gsdf, cache, sky, voxels, probe_tex: dict, probe_res: int,
                 ray_jitter, cam_pos, t_max: float):
-        """radiance_cache_resolve on the screen probes' radiance texture, in place."""
+        """radiance_cache_resolve on the screen probes' radiance texture (ray slots, their directions
+        in probe_tex["rays"]), in place."""
         r = probe_tex["radiance"]
         sh = compute.shader("radiance_cache_resolve",
-                            samplers=("probe_info", "probe_normal") + SAMPLERS
+                            samplers=("probe_info", "probe_normal", "probe_rays") + SAMPLERS
                             + voxel_lighting.SAMPLERS,
                             images=(("probe_radiance_io", 'RGBA32F', {'READ', 'WRITE'}),),
                             push=(CAMERA, ('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
                                   ('FLOAT', 't_max')),
-                            libs=GI_LIBS + LOOKUP, scene=True, surface_cache=True,
-                            global_sdf=True)
+                            libs=GI_LIBS + LOOKUP + ("screen_probe_ray_lib.glsl",), scene=True,
+                            surface_cache=True, global_sdf=True)
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
@@ -211,6 +212,7 @@ class RadianceCache:
         held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
         self.bind(sh)
         sh.uniform_sampler("probe_info", probe_tex["info"])
+        sh.uniform_sampler("probe_rays", probe_tex["rays"])    # the slots' directions
         sh.uniform_sampler("probe_normal", probe_tex["normal"])
         sh.uniform_float("rc_camera", self.camera_vec(cam_pos))
         sh.uniform_int("probe_res", int(probe_res))

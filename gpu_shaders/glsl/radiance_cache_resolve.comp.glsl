@@ -3,7 +3,7 @@
  * probes, sphere parallax, visibility); where no probe serves it, it traces on from there to
  * t_max as it did without the cache (so the sky and far walls stay right). In place on
  * probe_radiance_io; alpha becomes t_max + 1 for cache texels (far: the spatial filter shares them; tests count them).
- * Samplers probe_info, probe_normal, rc_cells, rc_slots, rc_state, rc_atlas (+ the tracer's).
+ * Samplers probe_info, probe_normal, probe_rays (the slots' directions), rc_cells, rc_slots, rc_state, rc_atlas (+ the tracer's).
  */
 void main()
 {
@@ -20,7 +20,7 @@ void main()
   ivec2 texel = tx - pr * probe_res;
   vec4 info = texelFetch(probe_info, pr, 0);
   vec3 n = texelFetch(probe_normal, pr, 0).xyz;
-  vec3 dir = oct_texel_dir(texel, probe_res, ray_jitter);
+  vec3 dir = screen_probe_ray_dir(tx, probe_res, ray_jitter);
   float h;
   int obj;
   sdf_scene(info.xyz, h, obj);

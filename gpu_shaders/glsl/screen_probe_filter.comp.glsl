@@ -11,7 +11,8 @@
  *   - visibility: a neighbour that a wall hides from this probe is left out (an inside probe
  *     next to a thin wall must not average the outside's sky): probe_links, once per probe.
  * Inputs: probe_info, probe_normal, probe_radiance, probe_links (screen_probe_links);
- * probe_res, ray_jitter.
+ * probe_res, ray_jitter, uniform_grid (the uniform probes' block of the atlas: an adaptive probe,
+ * screen_probe_adaptive, has no grid neighbours and keeps its own radiance).
  * Output out_image: filtered radiance rgb, a = own hit distance.
  */
 #define FILTER_SHARPNESS 1000.0
@@ -26,7 +27,8 @@ void main()
   }
   ivec2 pr = tx / probe_res;
   ivec2 texel = tx - pr * probe_res;
-  ivec2 grid = textureSize(probe_info, 0);
+  ivec2 grid = uniform_grid;        /* neighbours among the uniform probes only */
+  bool uniform_probe = all(lessThan(pr, grid));
   vec4 info = texelFetch(probe_info, pr, 0);
   vec4 own = texelFetch(probe_radiance, tx, 0);
   if (info.w <= 0.0) {
@@ -42,7 +44,8 @@ void main()
   for (int dy = -1; dy <= 1; dy++) {
     for (int dx = -1; dx <= 1; dx++) {
       ivec2 q = pr + ivec2(dx, dy);
-      if ((dx == 0 && dy == 0) || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, grid))) {
+      if (!uniform_probe || (dx == 0 && dy == 0) || any(lessThan(q, ivec2(0)))
+          || any(greaterThanEqual(q, grid))) {
         continue;
       }
       vec4 qi = texelFetch(probe_info, q, 0);

@@ -10,7 +10,11 @@
  * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, the mesh SDFs;
  * cam_pos, probe_tile; for the fallback rays the surface cache and global SDF, frame, t_max,
  * the radiance cache's samplers, rc_camera and image rc_marks.
- * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0 fallback, -1 background.
+ * With adaptive probes (uniform_rows > 0: screen_probe_adaptive's atlas, the uniform block
+ * [0, gw) x [0, uniform_rows)) a pixel the uniform probes do not interpolate first takes the
+ * adaptive probes of its 2x2 nearest 8x8 and 4x4 tiles that lie on its plane (w = 0.5).
+ * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0.5 adaptive, 0 fallback
+ * (the visible uniform probes' bilinear weights or FALLBACK_RAYS rays), -1 background.
  */
 #define FALLBACK_RAYS 16
 
@@ -26,7 +30,8 @@ void main()
     imageStore(out_image, px, vec4(0.0, 0.0, 0.0, -1.0));
     return;
   }
-  ivec2 grid = textureSize(probe_info, 0);
+  ivec2 atlas = textureSize(probe_info, 0);
+  ivec2 grid = uniform_rows > 0 ? ivec2(atlas.x / 4, uniform_rows) : atlas;
   vec2 g = (vec2(px) + 0.5) / float(probe_tile) - 0.5;
   ivec2 i0 = ivec2(floor(g));
   vec2 f = g - vec2(i0);
@@ -47,6 +52,45 @@ void main()
   float ok;
   vec4 w = probe_corner_weights(f, info[0].xyz, info[1].xyz, info[2].xyz, info[3].xyz, valid,
                                 vec4(n, dot(n, p)), depth, ok);
+  if (ok < 0.5 && uniform_rows > 0) {
+    /* the adaptive probes of the 2x2 nearest 8x8 tiles and 4x4 tiles, by bilinear x plane
+     * weights (screen_probe_adaptive placed them where the uniform ones fail) */
+    vec3 Ea = vec3(0.0);
+    float wa = 0.0;
+    for (int level = 1; level <= 2; level++) {
+      int T = probe_tile >> level;
+      vec2 ga = (vec2(px) + 0.5) / float(T) - 0.5;
+      ivec2 a0 = ivec2(floor(ga));
+      vec2 fa = ga - vec2(a0);
+      ivec2 origin = ivec2(0, level == 1 ? uniform_rows : 3 * uniform_rows);
+      ivec2 extent = (level == 1 ? 2 : 4) * grid;
+      for (int k = 0; k < 4; k++) {
+        ivec2 c = ivec2(k & 1, k >> 1);
+        ivec2 t = clamp(a0 + c, ivec2(0), extent - 1);
+        ivec2 slot = origin + t;
+        vec4 ai = texelFetch(probe_info, slot, 0);
+        if (ai.w <= 0.0) {
+          continue;
+        }
+        float rel = abs(dot(vec4(ai.xyz, -1.0), vec4(n, dot(n, p)))) / depth;
+        float wk = (c.x == 1 ? fa.x : 1.0 - fa.x) * (c.y == 1 ? fa.y : 1.0 - fa.y)
+                   * exp2(-PROBE_PLANE_SHARPNESS * rel * rel) + 1e-6 * float(rel < 0.01);
+        if (wk <= 0.0) {
+          continue;
+        }
+        vec3 ca[9];
+        for (int i = 0; i < 9; i++) {
+          ca[i] = texelFetch(probe_sh, slot * 3 + ivec2(i % 3, i / 3), 0).rgb;
+        }
+        Ea += wk * sh9_irradiance(ca, n);
+        wa += wk;
+      }
+    }
+    if (wa > 0.0) {
+      imageStore(out_image, px, vec4(max(Ea / wa, vec3(0.0)), 0.5));
+      return;
+    }
+  }
   if (ok < 0.5) {
     vec4 bw = vec4((1.0 - f.x) * (1.0 - f.y), f.x * (1.0 - f.y), (1.0 - f.x) * f.y, f.x * f.y);
     bw *= valid;

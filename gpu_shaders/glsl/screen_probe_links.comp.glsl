@@ -9,13 +9,14 @@
 void main()
 {
   ivec2 pr = ivec2(gl_GlobalInvocationID.xy);
-  ivec2 grid = textureSize(probe_info, 0);
-  if (pr.x >= grid.x || pr.y >= grid.y) {
+  ivec2 size = textureSize(probe_info, 0);
+  if (pr.x >= size.x || pr.y >= size.y) {
     return;
   }
+  ivec2 grid = uniform_grid;        /* adaptive probes (outside it) have no grid neighbours */
   vec4 info = texelFetch(probe_info, pr, 0);
   int mask = 0;
-  if (info.w > 0.0) {
+  if (info.w > 0.0 && all(lessThan(pr, grid))) {
     vec3 n = texelFetch(probe_normal, pr, 0).xyz;
     float hh;
     int oo;

@@ -1,6 +1,10 @@
 /* Screen probes to spherical harmonics (lecture: "Convert Probe Radiance to 3rd order SH"): per
  * probe, c_k = sum over its octahedral texels of L * Y_k(dir) * texel solid angle (exact solid
- * angles, octahedral_lib.glsl), dir the direction actually traced (ray_jitter).
+ * angles, octahedral_lib.glsl), dir the direction actually traced (ray_jitter). The probe's
+ * solid-angle mean radiance is taken out first and added to c_0 exactly: 64 jittered directions
+ * (one jitter per frame for every texel) are not a symmetric quadrature, and the constant part
+ * of L leaked into bands 1-2 (a uniform sky furnace gave E = pi L within -16%..+14% per frame,
+ * right only on average over the jitter sequence); now a constant L gives pi L exactly.
  * Inputs: probe_info, probe_filtered (radiance rgb); probe_res, ray_jitter.
  * Output out_image: coefficient k of probe (i, j) at texel (3 i + k % 3, 3 j + k / 3), rgb.
  */
@@ -16,10 +20,20 @@ void main()
     c[k] = vec3(0.0);
   }
   if (texelFetch(probe_info, pr, 0).w > 0.0) {
+    vec3 mean = vec3(0.0);
+    float total = 0.0;
+    for (int y = 0; y < probe_res; y++) {
+      for (int x = 0; x < probe_res; x++) {
+        float sa = oct_texel_solid_angle(ivec2(x, y), probe_res);
+        mean += texelFetch(probe_filtered, pr * probe_res + ivec2(x, y), 0).rgb * sa;
+        total += sa;
+      }
+    }
+    mean /= total;
     for (int y = 0; y < probe_res; y++) {
       for (int x = 0; x < probe_res; x++) {
         ivec2 texel = ivec2(x, y);
-        vec3 L = texelFetch(probe_filtered, pr * probe_res + texel, 0).rgb;
+        vec3 L = texelFetch(probe_filtered, pr * probe_res + texel, 0).rgb - mean;
         float b[9];
         sh9_basis(oct_texel_dir(texel, probe_res, ray_jitter), b);
         float sa = oct_texel_solid_angle(texel, probe_res);
@@ -28,6 +42,7 @@ void main()
         }
       }
     }
+    c[0] += mean * (SH_Y0 * 4.0 * 3.14159265358979);   /* the mean, projected exactly */
   }
   for (int k = 0; k < 9; k++) {
     imageStore(out_image, pr * 3 + ivec2(k % 3, k / 3), vec4(c[k], 1.0));

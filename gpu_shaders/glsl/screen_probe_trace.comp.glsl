@@ -2,14 +2,16 @@
  * the whole sphere in world-space directions so that neighbours' texels match), through
  * lumen_trace_lib.glsl (the screen first if on, mesh SDFs near, global SDF far, the surface
  * cache at hits, sky on a miss).
- * Directions are jittered inside their texel by ray_jitter (the same for every probe of a frame).
+ * Directions are jittered inside their texel by ray_jitter (the same for every probe of a frame);
+ * with importance sampling a slot may trace another texel or a quarter of one
+ * (screen_probe_ray_lib.glsl: probe_rays; screen_probe_compose weights the slots).
  * Rays start one voxel of the nearest object off the probe's surface along its normal.
  * With the world radiance cache on (rc_camera.w > 0, radiance_cache_layout_lib.glsl) a ray whose
  * origin lies in a cache level traces only rc_trace_distance (2 m at level 0): without a hit it
  * is flagged (alpha -2, radiance_cache_resolve fills it in) and marks the 8 cache cells around
  * its origin as used this frame (rc_frame), so that their probes are allocated and traced.
- * Inputs: probe_info, probe_normal, screen_trace.SAMPLERS; push constants probe_res, ray_jitter,
- * t_max, rc_camera, rc_frame, screen_trace.PUSH, screen_steps; image rc_marks.
+ * Inputs: probe_info, probe_normal, probe_rays, screen_trace.SAMPLERS; push constants probe_res,
+ * ray_jitter, t_max, rc_camera, rc_frame, screen_trace.PUSH; image rc_marks.
  * Output out_image (probe atlas, probe (i, j) at texels [i*res, (i+1)*res) x [j*res, ...)):
  * radiance rgb, a = hit distance (t_max on a miss, -1 where there is no probe, -2 to resolve).
  */
@@ -28,7 +30,7 @@ void main()
     return;
   }
   vec3 n = texelFetch(probe_normal, pr, 0).xyz;
-  vec3 dir = oct_texel_dir(texel, probe_res, ray_jitter);
+  vec3 dir = screen_probe_ray_dir(tx, probe_res, ray_jitter);  /* importance sampling */
   float h;
   int obj;
   sdf_scene(info.xyz, h, obj);
