@@ -10,7 +10,8 @@ F12 render accumulates:
     gsdf_n, gsdf_voxel  global SDF clipmap texels per side and level-0 voxel (metres)
     history          viewport temporal filter: exponential over about this many frames
     sc_tiles         viewport surface-cache budget: tiles of 32x32 lighting texels relit per frame
-                     (surface_cache_pages.py; F12 relights all); the scene's Cache Texels per
+                     (surface_cache_pages.py; F12: render_sc_share() of them per iteration,
+                     by priority); the scene's Cache Texels per
                      Frame overrides it
 `voxel_lighting` (on unless a settings object says otherwise): a global-SDF hit is searched among
 its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, it is searched on

@@ -180,7 +180,8 @@ def tile_geometry(schedule: PageSchedule, texel_card: np.ndarray, cards: np.ndar
     rows = np.arange(len(row))
     p[rows, plane[axis, 0]] = u
     p[rows, plane[axis, 1]] = v
-    w2l = np.asarray(objects, np.float64)[:, 0:4, :]      # [instances, 4, 4] row-major
+    w2l = np.array(objects, np.float64)[:, 0:4, :]        # [instances, 4, 4] row-major
+    w2l[:, 3] = (0.0, 0.0, 0.0, 1.0)                      # as sc_object_w2l reads it
     l2w = np.linalg.pinv(w2l)                             # parked instances: singular
     pw = np.einsum("nij,nj->ni", l2w[inst, :3, :3], p) + l2w[inst, :3, 3]
     nw = np.einsum("nji,nj->ni", w2l[inst, :3, :3], -look)   # normals: transposed inverse

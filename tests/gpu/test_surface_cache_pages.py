@@ -98,6 +98,15 @@ def test_tile_geometry_and_render_priority():
     assert np.allclose(centre[0], (-16.5, 0.0, 0.0), atol=0.6), centre[0]
     assert np.allclose(normal[:2], (0, 0, 1)) and np.allclose(normal[2:], (0, 0, -1))
     assert np.allclose(radius, 0.5 * np.hypot(31, 31) + 0.1, atol=1e-6)
+    # the instance moved by (1, 2, 3) and turned 90 degrees about x (world-to-local: the inverse)
+    turn = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]], float)
+    move = np.eye(4)
+    move[:3, 3] = (1, 2, 3)
+    moved = objects.copy()
+    moved[0, 0:4] = np.linalg.inv(move @ turn)
+    c2, r2, n2 = tile_geometry(s, tc, cards, moved)
+    assert np.allclose(c2, centre[:, [0, 2, 1]] * (1, -1, 1) + (1, 2, 3), atol=1e-5)
+    assert np.allclose(n2[:2], (0, -1, 0), atol=1e-6) and np.allclose(r2, radius)
     s.geometry = (centre, radius, normal)
     # a camera 10 m above the top's x > 0 half, looking down: that tile first; the underside
     # (facing away) after the top's far half, the near underside before the far; never-lit tiles
