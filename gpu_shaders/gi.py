@@ -9,8 +9,8 @@
                          last iteration's final light (one more bounce each time), combine;
                          the viewport relights a budget of tiles per frame by priority
                          (surface_cache_pages.py), F12 GISettings.render_sc_share() of
-                         them per iteration, by each tile's own visibility, distance and
-                         age (never-lit tiles first)
+                         them per iteration (default: all), by each tile's own visibility,
+                         distance and age (never-lit tiles first)
     screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py);
                          or another final gather passed as `gather` (GI Method VXGI: vxgi.py's
                          cones read the same voxel lighting)

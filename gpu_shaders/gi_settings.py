@@ -50,8 +50,9 @@ class GISettings:
     pixel_rays: int = 64           # PIXEL: cosine rays per pixel per frame
     voxel_lighting: bool = True    # far (global-SDF) hits read voxel lighting
     cache_relax: float = 1.5       # F12: the surface cache's over-relaxation (1: plain bounces)
-    render_sc_fraction: float = 0.2    # F12: least share of surface-cache tiles relit per
-                                       # iteration, by priority (render_sc_share; UE: 0.125)
+    render_sc_fraction: float = 1.0    # F12: least share of surface-cache tiles relit per
+                                       # iteration, by priority (render_sc_share; UE: 0.125);
+                                       # 1: every tile (0.2 loses bounces indoors: see there)
     radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
     rc_spacing: float = 0.577      # radiance cache level-0 probe spacing (m): 2 m screen rays
     rc_budget: int = 16            # radiance cache probes traced per viewport frame (new first)
@@ -89,9 +90,12 @@ class GISettings:
         bounces - 1 full warm-ups it replaces (visible, near tiles more, the rest fewer),
         at least render_sc_fraction, and at least 1 / iterations (every tile is lit once);
         1 relights every tile every iteration (as before).
-        Measured on `thin` (bench/quality.py scene, 128 px, CPU seconds of the F12 in one
-        process, the machine loaded): every tile 95.9 s, relMSE 0.0221; 0.25: 28.3 s, 0.0220;
-        0.15: 19.8 s, 0.0220 (its room is dark; the bouncing rooms: see the commit)."""
+        Measured (bench/quality.py scenes, 128 px; CPU seconds of the F12 call in one process,
+        the machine loaded): with 0.2, thin 86.3 -> 23.4 s at relMSE 0.0221 -> 0.0220, yard
+        27.9 s (EEVEE 64 spp: 42.7 s) at 0.0137 -> 0.0135; but the rooms lit by bounces lose
+        light: window relMSE 0.0369 -> 0.0931 (bias -11.7% -> -30.5%), glow 0.0802 -> 0.1917,
+        imported 0.0176 -> 0.0319, cornell 0.0374 -> 0.0367 (bias -3.3% -> -9.0%). So the
+        default stays 1 (every tile, every iteration) until the share keeps their bounces."""
         n = len(self.render_schedule())
         return min(max(float(self.render_sc_fraction), (self.bounces - 1) / n, 1.0 / n), 1.0)
 
