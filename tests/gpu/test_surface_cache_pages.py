@@ -113,13 +113,14 @@ def test_tile_geometry_and_render_priority():
     # in the same order, before any lit
     cam = (16.0, 0.0, 10.0)
     view_proj = np.diag([1 / 40, 1 / 40, -1 / 40, 1.0])   # |x|, |y|, |z| <= 40 in view
-    assert list(s.choose_render(0.25, 0, view_proj=view_proj, cam_pos=cam)) == [1]
-    s.commit(np.array([1]), 0)
-    assert list(s.choose_render(0.5, 1, view_proj=view_proj, cam_pos=cam)) == [0, 3]
+    assert list(s.facing(cam)) == [True, True, False, False]
+    # the top (facing the camera) every time, of the underside the near tile first
+    assert list(s.choose_render(0.25, 0, view_proj=view_proj, cam_pos=cam)) == [0, 1, 3]
+    s.commit(np.array([0, 1, 3]), 0)
+    assert list(s.choose_render(0.25, 1, view_proj=view_proj, cam_pos=cam)) == [0, 1, 2]
     s.commit(np.arange(4), 0)
     score = s.render_priority(1, view_proj=view_proj, cam_pos=cam)
     assert score[1] > score[0] > score[2] and score[0] > score[3]
-    idx = s.choose_render(0.25, 1, view_proj=view_proj, cam_pos=cam)
-    assert list(idx) == [1]
-    s.commit(idx, 1)
+    s.commit(np.array([0, 1, 2]), 1)
+    assert list(s.choose_render(0.25, 2, view_proj=view_proj, cam_pos=cam)) == [0, 1, 3]
     assert len(s.choose_render(1.0, 2)) == 4
