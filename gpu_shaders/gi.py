@@ -8,7 +8,9 @@
     surface cache        direct light per card texel, then per iteration: indirect rays reading
                          last iteration's final light (one more bounce each time), combine;
                          the viewport relights a budget of tiles per frame by priority
-                         (surface_cache_pages.py), F12 every tile
+                         (surface_cache_pages.py), F12 GISettings.render_sc_share() of
+                         them per iteration (default: all), by each tile's own visibility,
+                         distance and age (never-lit tiles first)
     screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py);
                          with GISettings.screen_trace their rays walk the HZB first
                          (screen_trace.py: HZB once per frame, the screen colour per iteration
@@ -102,6 +104,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
             rcache.reset = True                  # every probe is traced again
     if final:
         state.gi_frame = 0                       # the same jitter sequence every render
+        cache.pages.geometry = None              # tiles' world boxes: objects may have moved
     state.gi_view_key, state.gi_sky = view_key, sky.key
     objects_changed = bool(changes & {"atlas", "objects"})
     t1 = time.perf_counter()
@@ -124,6 +127,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     state.screen_trace = screen
     if final:
         schedule = gi.render_schedule()
+        share = gi.render_sc_share()
     else:
         # one iteration; the surface cache's tiles blend by their own counts (plan() above)
         m = probes.history is not None and probes.frames or 0
@@ -142,8 +146,10 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
             relight = False
         v = time.perf_counter()
         if sc_blend is not None:
-            if final:
-                frame_tiles = cache.plan(frame, blend=sc_blend)
+            if final:    # a share of the tiles, never-lit, then visible, near and old first
+                frame_tiles = cache.plan(frame, blend=sc_blend, fraction=share,
+                                         where=dict(view_proj=view_proj, cam_pos=cam_pos),
+                                         objects=res.packed.objects)
             else:
                 frame_tiles = tiles                  # one iteration per viewport frame
             relit += cache.light_indirect(res, gsdf, sky, frame, t_max, frame_tiles, voxels)

@@ -29,7 +29,7 @@ import numpy as np
 from . import compute, voxel_lighting
 from .card_packing import CARD_TEXELS, PackedCards, pack_cards
 from .resources import SceneResources, float_buffer
-from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule
+from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule, tile_geometry
 
 GROUP = 8
 
@@ -133,13 +133,22 @@ class SurfaceCache:
 
     # --- passes --------------------------------------------------------------------------------
     def plan(self, frame: int, blend: float = 1.0, budget: int = 0, history: int = 1,
-             where=None) -> tuple:
+             where=None, fraction: float = 1.0, objects=None) -> tuple:
         """This frame's tiles and their blends, committed as relit at `frame`.
-        budget <= 0 (F12): every tile, all with `blend`. budget > 0 (viewport): at most `budget`
+        budget <= 0 (F12): every tile, all with `blend`, or with fraction < 1 that fraction of
+        them by PageSchedule.render_priority (`where`: view_proj, cam_pos; `objects`: the
+        object table, for the tiles' world geometry); every tile on the first call after a
+        reset. budget > 0 (viewport): at most `budget`
         tiles by priority (surface_cache_pages.py; `where`: instance_spheres, view_proj,
         cam_pos), each with its own blend from its update count and `history`."""
         if budget > 0:
             idx, blends = self.pages.choose(budget, frame, history, **(where or {}))
+        elif fraction < 1.0:
+            if self.pages.geometry is None and objects is not None:
+                self.pages.geometry = tile_geometry(self.pages, self.packed.texel_card,
+                                                    self.packed.cards, objects)
+            idx = self.pages.choose_render(fraction, frame, **(where or {}))
+            blends = np.full(len(idx), float(blend))
         else:
             idx, blends = self._all_tiles(blend)
         self.pages.commit(idx, frame)

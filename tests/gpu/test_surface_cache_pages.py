@@ -3,7 +3,7 @@ and their card rows, the budget, the priority order (never lit, visible, near, o
 tile is refreshed within the frames the budget implies."""
 import numpy as np
 
-from gpu_shaders.surface_cache_pages import TILE, PageSchedule
+from gpu_shaders.surface_cache_pages import TILE, PageSchedule, tile_geometry
 
 
 def atlas():
@@ -69,3 +69,58 @@ def test_ages_for_the_heat_view():
     s.commit(np.array([1]), 7)
     a = s.ages()
     assert a[0, 0] == 2 and a[0, 1] == 0 and a[0, 2] == -1 and a[2, 3] == -1
+
+
+def ground_and_underside():
+    """Two cards of one 64 m x 32 m slab at z = 0 on instance 0 (identity transform), each 64 x 32
+    lighting texels (1 m per texel: 2 x 1 tiles each): row 0 looks down (-Z: sees the top, whose
+    normal is +Z), row 1 looks up (+Z: the underside, normal -Z). Lighting atlas 64 x 64."""
+    tc = np.full((64, 64), -1.0)
+    tc[:32, :] = 0
+    tc[32:, :] = 1
+    cards = np.zeros((2, 4, 4), np.float32)
+    for row, axis in ((0, 5), (1, 4)):
+        cards[row, 0] = (0, axis, 0, 32 * row)
+        cards[row, 1] = (0, 0, 64, 32)
+        cards[row, 2] = (-32, -16, 32, 16)
+        cards[row, 3] = (-0.1, 0.1, 0, 0) if axis == 4 else (-0.1, 0.1, 0, 0)
+    objects = np.zeros((1, 9, 4), np.float32)
+    objects[0, 0:4] = np.eye(4)
+    return tc, cards, objects
+
+
+def test_tile_geometry_and_render_priority():
+    tc, cards, objects = ground_and_underside()
+    s = PageSchedule(tc, np.zeros(2))
+    assert len(s) == 4                               # 2 x 2 tiles of 32 x 32 texels
+    centre, radius, normal = tile_geometry(s, tc, cards, objects)
+    # tile (0, 0): the top's texels x in [-32, 0] m, y in [-16, 16] m
+    assert np.allclose(centre[0], (-16.5, 0.0, 0.0), atol=0.6), centre[0]
+    assert np.allclose(normal[:2], (0, 0, 1)) and np.allclose(normal[2:], (0, 0, -1))
+    assert np.allclose(radius, 0.5 * np.hypot(31, 31) + 0.1, atol=1e-6)
+    # the instance moved by (1, 2, 3) and turned 90 degrees about x (world-to-local: the inverse)
+    turn = np.array([[1, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]], float)
+    move = np.eye(4)
+    move[:3, 3] = (1, 2, 3)
+    moved = objects.copy()
+    moved[0, 0:4] = np.linalg.inv(move @ turn)
+    c2, r2, n2 = tile_geometry(s, tc, cards, moved)
+    assert np.allclose(c2, centre[:, [0, 2, 1]] * (1, -1, 1) + (1, 2, 3), atol=1e-5)
+    assert np.allclose(n2[:2], (0, -1, 0), atol=1e-6) and np.allclose(r2, radius)
+    s.geometry = (centre, radius, normal)
+    # a camera 10 m above the top's x > 0 half, looking down: that tile first; the underside
+    # (facing away) after the top's far half, the near underside before the far; never-lit tiles
+    # in the same order, before any lit
+    cam = (16.0, 0.0, 10.0)
+    view_proj = np.diag([1 / 40, 1 / 40, -1 / 40, 1.0])   # |x|, |y|, |z| <= 40 in view
+    assert list(s.facing(cam)) == [True, True, False, False]
+    # the top (facing the camera) every time, of the underside the near tile first
+    assert list(s.choose_render(0.25, 0, view_proj=view_proj, cam_pos=cam)) == [0, 1, 3]
+    s.commit(np.array([0, 1, 3]), 0)
+    assert list(s.choose_render(0.25, 1, view_proj=view_proj, cam_pos=cam)) == [0, 1, 2]
+    s.commit(np.arange(4), 0)
+    score = s.render_priority(1, view_proj=view_proj, cam_pos=cam)
+    assert score[1] > score[0] > score[2] and score[0] > score[3]
+    s.commit(np.array([0, 1, 2]), 1)
+    assert list(s.choose_render(0.25, 2, view_proj=view_proj, cam_pos=cam)) == [0, 1, 3]
+    assert len(s.choose_render(1.0, 2)) == 4
