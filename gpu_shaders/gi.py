@@ -168,15 +168,11 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 # F12: every cache probe traced every gathered frame, texels a running mean
                 # (as the screen probes' own rays are: the same image quality); viewport: the
                 # budget, new probes first, exponential
-<<<<<<< HEAD
-                rc = {}
+                rc = {} if gather is not None else {"importance": gi.probe_importance,
+                                                 "adaptive": gi.adaptive_probes}
                 if screen is not None and probes.history is not None:
                     screen.light(direct, probes.history, sky)   # last gather's light
                     rc["screen"] = screen
-=======
-                rc = {} if gather is not None else {"importance": gi.probe_importance,
-                                                 "adaptive": gi.adaptive_probes}
->>>>>>> probes
                 if rcache is not None:
                     rc.update(rcache=rcache, rc_budget=gi.rc_budget, rc_blend=0.25,
                               rc_retrace=gi.rc_retrace)
