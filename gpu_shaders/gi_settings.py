@@ -133,4 +133,7 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
                     gather=str(getattr(s, "gi_gather", d.gather)),
                     voxel_lighting=bool(getattr(s, "voxel_lighting", d.voxel_lighting)),
                     radiance_cache=bool(getattr(s, "radiance_cache", d.radiance_cache)),
-                    screen_trace=bool(getattr(s, "screen_trace", d.screen_trace)), **extra)
+                    screen_trace=bool(getattr(s, "screen_trace", d.screen_trace)),
+                    adaptive_probes=bool(getattr(s, "adaptive_probes", d.adaptive_probes)),
+                    probe_importance=bool(getattr(s, "probe_importance", d.probe_importance)),
+                    **extra)

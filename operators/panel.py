@@ -253,6 +253,8 @@ class RENDER_PT_lumen_gi_lumen(MethodPanel, bpy.types.Panel):
         layout, s = self.begin(context)
         layout.prop(s, "gi_gather")
         layout.prop(s, "screen_trace")
+        layout.prop(s, "adaptive_probes")
+        layout.prop(s, "probe_importance")
         layout.prop(s, "radiance_cache")
 
 

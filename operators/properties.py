@@ -167,6 +167,17 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                     "they do not find there is traced through the scene's distance fields. "
                     "Faster, with sharper bounced light from what the camera sees",
         default=GI.screen_trace)
+    adaptive_probes: BoolProperty(
+        name="Adaptive Probes",
+        description="Where the regular probes cannot light a pixel (edges, small objects), place "
+                    "extra, denser probes there instead of tracing rays for each such pixel",
+        default=GI.adaptive_probes)
+    probe_importance: BoolProperty(
+        name="Importance Sampling",
+        description="Experimental: probes send more of their rays where last frame's light and "
+                    "the surfaces around them say it matters. Off by default: less noise near "
+                    "bright spots, but measured slightly worse in a room lit by one small emitter",
+        default=GI.probe_importance)
     ssgi_rays: IntProperty(
         name="SSGI Rays per Pixel",
         description="Rays each pixel sends per frame to find bounced light on screen. More is "
