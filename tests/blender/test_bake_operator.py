@@ -230,9 +230,11 @@ def test_panel_draws_existing_properties_and_operators(blender):
     assert render == {"RENDER_PT_lumen_gi": [],
                       "RENDER_PT_lumen_gi_viewport": ["viewport_quality", "cache_texels_per_frame",
                                                       "preview_pixel_size"],
-                      "RENDER_PT_lumen_gi_render": ["render_quality", "bounces", "render_frames"],
+                      "RENDER_PT_lumen_gi_render": ["render_quality", "bounces", "render_frames",
+                                                    "aa_samples"],
                       "RENDER_PT_lumen_gi_method": ["gi_method"],
-                      "RENDER_PT_lumen_gi_lumen": ["gi_gather", "radiance_cache"],       # the default method's
+                      "RENDER_PT_lumen_gi_lumen": ["gi_gather", "screen_trace", "adaptive_probes",
+                                                   "probe_importance", "radiance_cache"],  # default method
                       "RENDER_PT_lumen_gi_debug": ["debug_view"]}, render
     memory = [n for k, n in r["render"]["RENDER_PT_lumen_gi_debug"] if k == "label"]
     assert memory == ["GPU Mesh SDFs", "120 B", "GPU Cards", "10 B", "GPU Sky", "5 B",

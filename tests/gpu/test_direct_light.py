@@ -6,7 +6,7 @@ specular layer (Specular IOR Level 0: a pure Lambert BSDF), black world, 64 x 64
 the same with no light and Blender's bundled courtyard.exr as the world (GI Off: the sky light of
 the direct pass, SDF-occluded, against Cycles with no bounces). Cycles:
 128 samples, no denoiser, no adaptive sampling, pixel filter 0.01 px (point samples at the pixel
-centres, like our G-buffer). Both engines write multilayer EXRs; the DiffDir passes are compared
+centres, like our G-buffer with anti-aliasing off). Both engines write multilayer EXRs; the DiffDir passes are compared
 with relMSE = mean((ours - ref)^2 / (ref^2 + 0.01)) over all pixels and channels.
 """
 import sys
@@ -121,6 +121,7 @@ scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
 scene.render.image_settings.color_depth = "32"
 times = {{}}
 notes = []
+scene.lumen.engine.aa_samples = 1   # point samples at the pixel centres, as Cycles' 0.01 px filter
 for kind in {LIGHTS!r}:
     light = make_light(kind)
     for eng in ("CYCLES", "LUMEN_GI"):
