@@ -9,10 +9,13 @@ import numpy as np
 
 
 def empty_scene(voxel_density: float = 4.0, cache_dir: str | None = None):
-    """A new empty file with low-resolution bake settings (fast tests)."""
+    """A new empty file with low-resolution bake settings (fast tests), anti-aliasing off: the
+    tests compare pixels with closed forms and point-sampled references (pixel masks from the
+    unjittered G-buffer); tests/gpu/test_antialias.py and test_view_draw.py turn it on."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     scene.lumen.bake.voxel_density = voxel_density
+    scene.lumen.engine.aa_samples = 1
     if cache_dir is not None:
         scene.lumen.bake.cache_dir = str(cache_dir)
     return scene

@@ -34,6 +34,7 @@ cam = aimed_camera((0.0, -5.0, 4.0), (0.0, 0.0, 0.3))
 scene.render.engine = "LUMEN_GI"
 scene.lumen.engine.render_quality = "LOW"
 scene.lumen.engine.viewport_quality = "LOW"
+scene.lumen.engine.aa_samples = 8
 scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 res, err = bake()
