@@ -160,7 +160,9 @@ def test_bright_patch_less_variance_same_mean(tmp_path):
     print(r["importance"]["kinds"], "var ratio", var_i / var_u, "means", m_ref, m_u, m_i)
     assert var_i < 0.7 * var_u
     assert abs(m_i - m_ref) <= 0.1 * m_ref
-    assert abs(m_i - m_u) <= 0.1 * m_u
+    # no farther from the per-pixel reference than uniform rays are (their mean carries the
+    # probes' own interpolation bias: -19% here at this commit, -13% when this test was written)
+    assert abs(m_i - m_ref) <= abs(m_u - m_ref) + 0.02 * m_ref
 
 
 BOXES = COMMON + """
