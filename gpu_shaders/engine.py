@@ -315,6 +315,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                 "Diffuse Direct": out["textures"]["direct"], "Diffuse Indirect": None,
                 "Diffuse Color": g["albedo"], "Normal": g["normal"]}
     gi_info = {}
+    LAST_RENDER.pop("trace_method", None)          # (the viewport keeps LAST_RENDER between frames)
     if gi_cfg.enabled:
         view_key = (np.asarray(view_proj, np.float64).tobytes(), width, height)
         if method.method == "LUMEN":
@@ -339,7 +340,6 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        gi_settings=gi_cfg.__dict__.copy())
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
             LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])
-        LAST_RENDER.pop("trace_method", None)      # (the viewport keeps LAST_RENDER between frames)
         if view == "TRACE_METHOD" and getattr(state, "screen_trace", None) is not None:
             LAST_RENDER["trace_method"] = state.screen_trace.method_image(
                 state.resources, state.global_sdf, state.surface_cache, sky,
