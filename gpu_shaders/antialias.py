@@ -82,27 +82,14 @@ class Supersampler:
         self.count = 0
 
     def add(self, textures: dict):
-        from . import compute
+        from .ssgi import accumulate     # mix(history, new, blend): the running mean
 
         self.count += 1
-        blend = 1.0 / self.count
         for name in self.NAMES:
             new = textures.get(name)
-            if new is None:
-                continue
-            old = self.means.get(name)
-            if old is None:
-                self.means[name] = new
-                continue
-            out = compute.texture((self.width, self.height))
-            sh = compute.shader("gi_accumulate", samplers=("e_new", "e_history"),
-                                push=(('FLOAT', 'blend'),))
-            sh.uniform_sampler("e_new", new)
-            sh.uniform_sampler("e_history", old)
-            sh.uniform_float("blend", float(blend))
-            sh.image("out_image", out)
-            compute.dispatch(sh, self.width, self.height)
-            self.means[name] = out
+            if new is not None:
+                self.means[name], _ = accumulate(self.means.get(name), new, 1.0 / self.count,
+                                                 self.width, self.height, 0)
 
 
 def resolve_indirect(gbuf: dict, base: dict, e_base, jitter, foot, cam_pos, width: int,

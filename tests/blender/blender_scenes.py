@@ -121,6 +121,26 @@ def scene_stats(scene) -> dict:
                                        "seconds", "status")}
 
 
+def closed_room(mat, half=(1.5, 1.2, 1.0), t: float = 0.2):
+    """Six slabs `t` thick around the box [-half, half], all of material `mat` (the closed room
+    of the GI tests: every ray from inside hits a wall). Returns the walls, named Wall<axis><+/->."""
+    walls = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            size = [2 * h + 2 * t for h in half]
+            size[axis] = t
+            loc = [0.0, 0.0, 0.0]
+            loc[axis] = sign * (half[axis] + t / 2)
+            bpy.ops.mesh.primitive_cube_add(size=1.0, location=loc)
+            ob = bpy.context.object
+            ob.name = f"Wall{axis}{'+' if sign > 0 else '-'}"
+            ob.scale = size
+            bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
+            ob.data.materials.append(mat)
+            walls.append(ob)
+    return walls
+
+
 # -- materials and images -----------------------------------------------------------------------
 
 def principled(name: str, base=(0.8, 0.8, 0.8), emission=None, strength: float = 0.0):

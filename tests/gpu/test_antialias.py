@@ -137,18 +137,7 @@ from lumen_gi.gpu_shaders import engine
 
 scene = empty_scene(voxel_density=10.0, cache_dir="cache")
 mat = principled("Wall", (0.5, 0.5, 0.5), emission=(1.0, 1.0, 1.0), strength=0.5)
-half, t = (1.5, 1.2, 1.0), 0.2
-for axis in range(3):
-    for sign in (-1.0, 1.0):
-        size = [2 * h + 2 * t for h in half]
-        size[axis] = t
-        loc = [0.0, 0.0, 0.0]
-        loc[axis] = sign * (half[axis] + t / 2)
-        bpy.ops.mesh.primitive_cube_add(size=1.0, location=loc)
-        ob = bpy.context.object
-        ob.scale = size
-        bpy.ops.object.transform_apply(location=False, rotation=False, scale=True)
-        ob.data.materials.append(mat)
+closed_room(mat)
 w = bpy.data.worlds.new("World")
 scene.world = w
 aimed_camera((-1.2, -0.9, -0.3), (1.0, 0.6, 0.1)).data.lens = 18.0
