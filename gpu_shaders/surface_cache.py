@@ -8,10 +8,11 @@ Textures (card_packing.py has the layouts):
     tables: sc_cards RGBA32F (4 texels per (instance, card) row), sc_instances RGBA32F (card range
         per object-table row), texel_card R32F (lighting texel -> card row)
     lighting atlas (one rectangle per (instance, card)), RGBA32F:
-        direct    E_direct, irradiance from the lights with SDF shadows (W/m^2)
+        direct    E_direct, irradiance from the lights with SDF shadows (W/m^2), plus the
+                  emitters nearer than the GI rays reach (sc_near_emission)
         indirect  E_indirect, irradiance from rays into the scene, read from `final` (next file)
         final     (E_direct + E_indirect) * albedo / pi + emissive: the radiance rays read at hits
-The passes, one GLSL file each, run by this class's methods: surface_cache_direct (lights),
+The passes, one GLSL file each, run by this class's methods: surface_cache_direct (lights, near emitters),
 surface_cache_probe_trace / _probe_sh / _indirect (radiosity probes: 16 rays per 4x4 texels
 through gi_trace_lib.glsl, filtered, two-band SH, interpolated per texel), surface_cache_combine
 (final), and for
