@@ -12,7 +12,8 @@ Arrays (uploaded by surface_cache.py as they are, x fastest):
     texel 0 = (instance, axis, lighting x, lighting y)
     texel 1 = (card-atlas x, card-atlas y, width, height)        texels, as atlas.card_entry's rect
     texel 2 = (rect_min u, rect_min v, rect_max u, rect_max v)   mesh-local metres, cards.PLANE axes
-    texel 3 = (near, far, 0, 0)                                  depth = AXES[axis] . p_local
+    texel 3 = (near, far, emissive texels, 0)                    depth = AXES[axis] . p_local;
+              emissive texels: 0 here, counted by surface_cache.mark_emissive_cards
 - `instances`: float32 [instances, 1, 4] = (first card row, card count, 0, 0) per object-table row.
 - `texel_card`: float32 [H, W] lighting texel -> its card row, -1 where no card is.
 Integers in float texels are exact below 2^24 (checked).

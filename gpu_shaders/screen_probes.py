@@ -28,7 +28,8 @@ Per frame, one GLSL pass each:
     screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, those a wall
                             hides left out, SH irradiance; where they fail, the adaptive probes
                             of the nearest 8x8 and 4x4 tiles on the pixel's plane; a pixel that
-                            still has none traces 16 rays
+                            still has none traces 16 rays; every pixel adds the emitters
+                            nearer its surface than a ray starts (sc_near_emission)
     screen_probe_temporal   mix with the history (running mean for F12, exponential in the viewport)
 Output: per-pixel indirect irradiance E (W/m^2); the composite divides by pi (Diffuse Indirect).
 Needs a GPU context.

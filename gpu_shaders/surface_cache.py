@@ -8,10 +8,11 @@ Textures (card_packing.py has the layouts):
     tables: sc_cards RGBA32F (4 texels per (instance, card) row), sc_instances RGBA32F (card range
         per object-table row), texel_card R32F (lighting texel -> card row)
     lighting atlas (one rectangle per (instance, card)), RGBA32F:
-        direct    E_direct, irradiance from the lights with SDF shadows (W/m^2)
+        direct    E_direct, irradiance from the lights with SDF shadows (W/m^2), plus the
+                  emitters nearer than the GI rays reach (sc_near_emission)
         indirect  E_indirect, irradiance from rays into the scene, read from `final` (next file)
         final     (E_direct + E_indirect) * albedo / pi + emissive: the radiance rays read at hits
-The passes, one GLSL file each, run by this class's methods: surface_cache_direct (lights),
+The passes, one GLSL file each, run by this class's methods: surface_cache_direct (lights, near emitters),
 surface_cache_probe_trace / _probe_sh / _indirect (radiosity probes: 16 rays per 4x4 texels
 through gi_trace_lib.glsl, filtered, two-band SH, interpolated per texel), surface_cache_combine
 (final), and for
@@ -40,6 +41,19 @@ def _tex(size, fmt, data=None):
     return gpu.types.GPUTexture(size, format=fmt, data=float_buffer(data))
 
 
+def mark_emissive_cards(cards: np.ndarray, emissive: np.ndarray) -> None:
+    """cards[:, 3, 2] = how many emissive texels each card's card-atlas rectangle holds (a
+    summed-area table, no loop over cards): sc_near_emission (surface_cache_lib.glsl) visits
+    only cards with emission."""
+    lit = np.asarray(emissive).max(axis=-1) > 0.0
+    sat = np.zeros((lit.shape[0] + 1, lit.shape[1] + 1), np.float64)
+    sat[1:, 1:] = lit.cumsum(0).cumsum(1)
+    x, y, w, h = (cards[:, 1, k].astype(np.int64) for k in range(4))
+    x1, y1 = np.minimum(x + w, lit.shape[1]), np.minimum(y + h, lit.shape[0])
+    x0, y0 = np.minimum(x, x1), np.minimum(y, y1)
+    cards[:, 3, 2] = sat[y1, x1] - sat[y0, x1] - sat[y1, x0] + sat[y0, x0]
+
+
 class SurfaceCache:
     """Card and lighting textures of one scene state (see the module docstring)."""
 
@@ -64,6 +78,7 @@ class SurfaceCache:
         self.normal = self._make("normal", (aw, ah), 'RGBA32F', rgba)
         rgba[..., :3], rgba[..., 3] = layers["emissive"], 0.0
         self.emissive = self._make("emissive", (aw, ah), 'RGBA16F', rgba)
+        mark_emissive_cards(self.packed.cards, layers["emissive"])
         self.cards = self._make("cards", (CARD_TEXELS, self.packed.rows), 'RGBA32F', self.packed.cards)
         self.instances = self._make("instances", (1, max(len(self.packed.instances), 1)), 'RGBA32F',
                                     self.packed.instances if len(self.packed.instances)

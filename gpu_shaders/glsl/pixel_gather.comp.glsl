@@ -1,7 +1,8 @@
 /* Reference final gather (tests and the "brute force" check of the screen probes): per G-buffer
  * pixel, `rays` cosine-distributed rays (a Hammersley set rotated per pixel and frame) through
  * gi_trace_lib.glsl, E = pi * mean(L): the same rays and surface cache as the probes, without
- * the probes' interpolation, filtering and SH.
+ * the probes' interpolation, filtering and SH; plus sc_near_emission (emitters nearer the surface
+ * than the rays' origin), as the probes' integrate pass adds it.
  * Inputs: gbuf_position, gbuf_normal; cam_pos, rays, frame, t_max.
  * Output out_image: E.rgb, w = 1 on surface pixels, -1 on the background.
  */
@@ -31,5 +32,6 @@ void main()
     float t, w;
     sum += gi_radiance(o, dir, t_max, t, w);
   }
-  imageStore(out_image, px, vec4(PI * sum / float(rays), 1.0));
+  vec3 near = sc_near_emission(p, n, gi_object_voxel(max(obj, 0)));   /* under the rays' origin */
+  imageStore(out_image, px, vec4(PI * sum / float(rays) + near, 1.0));
 }

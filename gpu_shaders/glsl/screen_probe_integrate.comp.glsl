@@ -13,6 +13,8 @@
  * With adaptive probes (uniform_rows > 0: screen_probe_adaptive's atlas, the uniform block
  * [0, gw) x [0, uniform_rows)) a pixel the uniform probes do not interpolate first takes the
  * adaptive probes of its 2x2 nearest 8x8 and 4x4 tiles that lie on its plane (w = 0.5).
+ * Every E adds sc_near_emission (surface_cache_lib.glsl): emitters nearer the pixel's surface than
+ * any probe ray starts (an emissive panel under a ceiling lights the ceiling around it).
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0.5 adaptive, 0 fallback
  * (the visible uniform probes' bilinear weights or FALLBACK_RAYS rays), -1 background.
  */
@@ -42,6 +44,8 @@ void main()
   int obj;
   sdf_scene(p, h, obj);
   float voxel = gi_object_voxel(max(obj, 0));
+  /* emitters facing the pixel from under 1.5 voxels: no probe ray reaches them */
+  vec3 near = sc_near_emission(p, n, voxel);
   for (int k = 0; k < 4; k++) {
     q[k] = clamp(q[k], ivec2(0), grid - 1);
     info[k] = texelFetch(probe_info, q[k], 0);
@@ -87,7 +91,7 @@ void main()
       }
     }
     if (wa > 0.0) {
-      imageStore(out_image, px, vec4(max(Ea / wa, vec3(0.0)), 0.5));
+      imageStore(out_image, px, vec4(max(Ea / wa, vec3(0.0)) + near, 0.5));
       return;
     }
   }
@@ -114,7 +118,7 @@ void main()
       if (mark) {
         rc_mark(o, k, frame);     /* probes for this pixel's next frames */
       }
-      imageStore(out_image, px, vec4(3.14159265358979 * sum / float(FALLBACK_RAYS), 0.0));
+      imageStore(out_image, px, vec4(3.14159265358979 * sum / float(FALLBACK_RAYS) + near, 0.0));
       return;
     }
   }
@@ -129,5 +133,5 @@ void main()
     }
     E += w[k] * sh9_irradiance(c, n);
   }
-  imageStore(out_image, px, vec4(max(E, vec3(0.0)), ok));
+  imageStore(out_image, px, vec4(max(E, vec3(0.0)) + near, ok));
 }

@@ -97,3 +97,38 @@ def test_floor_lit_by_the_back_of_an_emissive_quad(tmp_path):
     assert under.sum() > 50 and near.sum() > 500
     for m in (under, near):
         assert abs(img[m].mean() / expected[m].mean() - 1.0) <= 0.08
+
+
+# Near field: the same quad facing DOWN at 3 cm over the floor (0.6 of a 5 cm voxel, as a light
+# panel under a ceiling). No GI ray reaches the floor beneath it or the strip around it (rays leave
+# a surface a voxel off it, and the thin-wall rule closes the gap), so before
+# surface_cache_lib.glsl's sc_near_emission that halo was black; Cycles lights it by the closed
+# form: L = rho Le F(x, y) at h = 3 cm.
+H_NEAR, HALF_NEAR = 0.03, 0.3
+SCENE_NEAR = (SCENE.replace(f"(-s, -s, {H}), (s, -s, {H}), (s, s, {H}), (-s, s, {H})",
+                            f"(-s, -s, {H_NEAR}), (-s, s, {H_NEAR}), (s, s, {H_NEAR}), (s, -s, {H_NEAR})")
+              .replace("s = " + str(HALF), "s = " + str(HALF_NEAR))
+              .replace("assert quad.polygons[0].normal.z > 0.99          # facing up: the floor sees its back",
+                       "assert quad.polygons[0].normal.z < -0.99         # facing down, 3 cm over the floor")
+              .replace("aimed_camera((1.9, -0.5, 0.9), (-0.2, 0.0, 0.0))",
+                       "aimed_camera((0.9, -0.7, 0.8), (0.1, 0.0, 0.0))")
+              .replace("resolution_y = 48", "resolution_y = 96"))
+
+
+def test_floor_lit_by_an_emissive_quad_closer_than_a_voxel(tmp_path):
+    assert SCENE_NEAR.count(str(H_NEAR)) == 4 and "normal.z < -0.99" in SCENE_NEAR
+    assert "resolution_y = 96" in SCENE_NEAR
+    run = run_python(SCENE_NEAR, tmp_path, timeout=400)
+    assert run.returncode == 0, run.explain()
+    img = np.load(tmp_path / "combined.npy")[..., :3].mean(axis=-1)
+    pos = np.load(tmp_path / "position.npy")
+    floor = (pos[..., 3] > 0.5) & (np.abs(pos[..., 2]) < 0.01)
+    x, y = pos[..., 0], pos[..., 1]
+    out = np.maximum(np.abs(x), np.abs(y)) - HALF_NEAR          # distance outside the quad's edge
+    expected = RHO * LE * form_factor(x, y, H_NEAR, HALF_NEAR)
+    bins = {"0-3 cm": floor & (out > 0.0) & (out < 0.03),
+            "3-8 cm": floor & (out >= 0.03) & (out < 0.08)}
+    print({k: (float(img[m].mean()), float(expected[m].mean()), int(m.sum())) for k, m in bins.items()})
+    for m in bins.values():
+        assert m.sum() >= 10
+        assert abs(img[m].mean() / expected[m].mean() - 1.0) <= 0.06
