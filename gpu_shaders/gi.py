@@ -8,9 +8,10 @@
     surface cache        direct light per card texel, then per iteration: indirect rays reading
                          last iteration's final light (one more bounce each time), combine;
                          the viewport relights a budget of tiles per frame by priority
-                         (surface_cache_pages.py), F12 GISettings.render_sc_share() of
-                         them per iteration (default: all), by each tile's own visibility,
-                         distance and age (never-lit tiles first)
+                         (surface_cache_pages.py), F12 every tile the view reads
+                         (PageSchedule.seen) and GISettings.render_sc_share() of the
+                         others per iteration, by each tile's own visibility, distance
+                         and age (never-lit tiles first)
     screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py);
                          with GISettings.screen_trace their rays walk the HZB first
                          (screen_trace.py: HZB once per frame, the screen colour per iteration
@@ -105,7 +106,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
             rcache.reset = True                  # every probe is traced again
     if final:
         state.gi_frame = 0                       # the same jitter sequence every render
-        cache.pages.geometry = None              # tiles' world boxes: objects may have moved
+        cache.pages.set_geometry(None)           # tiles' world boxes: objects may have moved
     state.gi_view_key, state.gi_sky = view_key, sky.key
     objects_changed = bool(changes & {"atlas", "objects"})
     t1 = time.perf_counter()

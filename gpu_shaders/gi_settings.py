@@ -10,9 +10,9 @@ F12 render accumulates:
     gsdf_n, gsdf_voxel  global SDF clipmap texels per side and level-0 voxel (metres)
     history          viewport temporal filter: exponential over about this many frames
     sc_tiles         viewport surface-cache budget: tiles of 32x32 lighting texels relit per frame
-                     (surface_cache_pages.py; F12: render_sc_share() of them per iteration,
-                     by priority); the scene's Cache Texels per
-                     Frame overrides it
+                     (surface_cache_pages.py; F12: the tiles the view reads and
+                     render_sc_share() of the others per iteration, by priority); the
+                     scene's Cache Texels per Frame overrides it
 `voxel_lighting` (on unless a settings object says otherwise): a global-SDF hit is searched among
 its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, it is searched on
 every mesh SDF and reads the surface cache, whose cost grows with the number of objects.
@@ -52,9 +52,9 @@ class GISettings:
     pixel_rays: int = 64           # PIXEL: cosine rays per pixel per frame
     voxel_lighting: bool = True    # far (global-SDF) hits read voxel lighting
     cache_relax: float = 1.5       # F12: the surface cache's over-relaxation (1: plain bounces)
-    render_sc_fraction: float = 1.0    # F12: least share of surface-cache tiles relit per
-                                       # iteration, by priority (render_sc_share; UE: 0.125);
-                                       # 1: every tile (0.2 loses bounces indoors: see there)
+    render_sc_fraction: float = 0.2    # F12: least share of the tiles the view does not read
+                                       # (surface_cache_pages.seen) relit per iteration, by
+                                       # priority (render_sc_share; UE: 0.125); 1: every tile
     radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
     # screen-probe rays importance-sampled (BRDF x last radiance). Off by default: on, quality.py
     # 128 px relMSE glow 0.0801 -> 0.0861 (gpu_shaders/README: Screen probes)
@@ -108,19 +108,21 @@ class GISettings:
         return t
 
     def render_sc_share(self) -> float:
-        """F12: the share of surface-cache tiles each iteration relights (the lecture's update
-        budget; surface_cache_pages.PageSchedule.render_priority picks them: never lit, then
-        age x (visible: 4) / (1 + distance / 10 m), from each tile's own world box). At least
-        (bounces - 1) / iterations, so the render spends as many tile relights as the
-        bounces - 1 full warm-ups it replaces (visible, near tiles more, the rest fewer),
-        at least render_sc_fraction, and at least 1 / iterations (every tile is lit once);
-        1 relights every tile every iteration (as before).
-        Measured (bench/quality.py scenes, 128 px; CPU seconds of the F12 call in one process,
+        """F12: the share of the surface-cache tiles the view does not read that each iteration
+        relights (the lecture's update budget). Every iteration relights every never-lit tile
+        and every tile the view reads (PageSchedule.seen: a visible tile's rays reach it);
+        PageSchedule.render_priority picks this share of the others: age x (visible: 4) /
+        (1 + distance / 10 m), from each tile's own world box. At least render_sc_fraction,
+        (bounces - 1) / iterations and 1 / iterations; 1 relights every tile every iteration.
+        Measured before `seen` (a share of every tile, then of the tiles not facing the
+        camera) (bench/quality.py scenes, 128 px; CPU seconds of the F12 call in one process,
         the machine loaded): with 0.2, thin 86.3 -> 23.4 s at relMSE 0.0221 -> 0.0220, yard
         27.9 s (EEVEE 64 spp: 42.7 s) at 0.0137 -> 0.0135; but the rooms lit by bounces lose
         light: window relMSE 0.0369 -> 0.0931 (bias -11.7% -> -30.5%), glow 0.0802 -> 0.1917,
-        imported 0.0176 -> 0.0319, cornell 0.0374 -> 0.0367 (bias -3.3% -> -9.0%). So the
-        default stays 1 (every tile, every iteration) until the share keeps their bounces."""
+        imported 0.0176 -> 0.0319, cornell 0.0374 -> 0.0367 (bias -3.3% -> -9.0%): the rooms
+        need every wall relit every iteration, which `seen` now does (bench/quality_scenes
+        tiles relit per iteration with 0.2: cornell 33 of 36, window 88/104, glow 32/32,
+        imported 61/63, textured 51/64, thin 113/170, yard 124/221)."""
         n = len(self.render_schedule())
         return min(max(float(self.render_sc_fraction), (self.bounces - 1) / n, 1.0 / n), 1.0)
 

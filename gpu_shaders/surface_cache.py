@@ -30,7 +30,7 @@ import numpy as np
 from . import compute, voxel_lighting
 from .card_packing import CARD_TEXELS, PackedCards, pack_cards
 from .resources import SceneResources, float_buffer
-from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule, tile_geometry
+from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule, tile_area, tile_geometry
 
 GROUP = 8
 
@@ -160,8 +160,9 @@ class SurfaceCache:
             idx, blends = self.pages.choose(budget, frame, history, **(where or {}))
         elif fraction < 1.0:
             if self.pages.geometry is None and objects is not None:
-                self.pages.geometry = tile_geometry(self.pages, self.packed.texel_card,
-                                                    self.packed.cards, objects)
+                tc, cards = self.packed.texel_card, self.packed.cards
+                self.pages.set_geometry(tile_geometry(self.pages, tc, cards, objects),
+                                        tile_area(self.pages, tc, cards, objects))
             idx = self.pages.choose_render(fraction, frame, **(where or {}))
             blends = np.full(len(idx), float(blend))
         else:

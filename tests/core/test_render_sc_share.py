@@ -5,7 +5,7 @@ from gpu_shaders.gi_settings import settings
 
 
 def test_share_of_tiles_per_f12_iteration():
-    assert settings().render_sc_share() == 1.0                          # default: every tile
+    assert settings().render_sc_share() == 0.2                          # default: 0.2 of the unseen tiles
     s = dict(render_sc_fraction=0.2)
     assert settings(**s).render_sc_share() == 0.2                       # 3 bounces, 8 frames: 2/10
     assert settings(bounces=8, render_frames=4, **s).render_sc_share() == 7 / 11

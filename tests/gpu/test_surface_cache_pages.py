@@ -3,7 +3,7 @@ and their card rows, the budget, the priority order (never lit, visible, near, o
 tile is refreshed within the frames the budget implies."""
 import numpy as np
 
-from gpu_shaders.surface_cache_pages import TILE, PageSchedule, tile_geometry
+from gpu_shaders.surface_cache_pages import SEEN_SHARE, TILE, PageSchedule, tile_area, tile_geometry
 
 
 def atlas():
@@ -114,13 +114,60 @@ def test_tile_geometry_and_render_priority():
     cam = (16.0, 0.0, 10.0)
     view_proj = np.diag([1 / 40, 1 / 40, -1 / 40, 1.0])   # |x|, |y|, |z| <= 40 in view
     assert list(s.facing(cam)) == [True, True, False, False]
-    # the top (facing the camera) every time, of the underside the near tile first
-    assert list(s.choose_render(0.25, 0, view_proj=view_proj, cam_pos=cam)) == [0, 1, 3]
+    # the first iteration: every tile (never lit); then (no tile areas: the top, facing the
+    # camera, every time) the never-lit underside tile and of the others a quarter
+    assert list(s.choose_render(0.25, 0, view_proj=view_proj, cam_pos=cam)) == [0, 1, 2, 3]
     s.commit(np.array([0, 1, 3]), 0)
-    assert list(s.choose_render(0.25, 1, view_proj=view_proj, cam_pos=cam)) == [0, 1, 2]
+    assert list(s.choose_render(0.25, 1, view_proj=view_proj, cam_pos=cam)) == [0, 1, 2, 3]
     s.commit(np.arange(4), 0)
     score = s.render_priority(1, view_proj=view_proj, cam_pos=cam)
     assert score[1] > score[0] > score[2] and score[0] > score[3]
     s.commit(np.array([0, 1, 2]), 1)
     assert list(s.choose_render(0.25, 2, view_proj=view_proj, cam_pos=cam)) == [0, 1, 3]
     assert len(s.choose_render(1.0, 2)) == 4
+
+
+def test_tile_area():
+    tc, cards, objects = ground_and_underside()
+    s = PageSchedule(tc, np.zeros(2))
+    assert np.allclose(tile_area(s, tc, cards, objects), 1024.0)   # 32 x 32 texels of 1 m^2
+    scaled = objects.copy()
+    scaled[0, 0:4] = np.linalg.inv(np.diag([2.0, 2.0, 2.0, 1.0]))  # instance scale 2
+    assert np.allclose(tile_area(s, tc, cards, scaled), 4096.0)
+
+
+def test_seen_tiles_and_the_render_share():
+    """A wall facing the camera on a ground: the ground next to the wall is read by the wall's
+    rays (seen), the ground 20 m away is visible but no visible tile's rays reach it (a flat
+    ground's tiles do not see each other), nor the wall's back. F12 relights the seen tiles
+    every iteration and a share of the others by priority."""
+    tc = np.zeros((TILE, 4 * TILE))
+    for r in range(4):
+        tc[:, r * TILE:(r + 1) * TILE] = r
+    s = PageSchedule(tc, np.arange(4))
+    centre = np.array([[0, 0, 1], [0, -1, 0], [0, -20, 0], [0, 0.01, 1]], float)
+    normal = np.array([[0, -1, 0], [0, 0, 1], [0, 0, 1], [0, 1, 0]], float)
+    s.geometry = (centre, np.full(4, 1.1), normal)
+    s.area = np.full(4, 2.56)                          # 32 x 32 texels at 20 per metre
+    cam = (0.0, -30.0, 10.0)
+    assert list(s.facing(cam)) == [True, True, True, False]
+    # wall -> near ground: 2.56 cos45 cos45 / (pi 2) = 0.204; -> far ground: ~1e-4
+    assert SEEN_SHARE == 0.02
+    assert list(s.seen(cam)) == [True, True, False, False]
+    assert list(s.choose_render(0.5, 0, cam_pos=cam)) == [0, 1, 2, 3]   # never lit: all
+    s.commit(np.arange(4), 0)
+    # the seen tiles, and of the other two one (ceil(0.5 x 2)): the visible far ground
+    assert list(s.choose_render(0.5, 1, cam_pos=cam)) == [0, 1, 2]
+    s.commit(np.array([0, 1, 2]), 1)
+    assert list(s.choose_render(0.0, 2, cam_pos=cam)) == [0, 1]        # no share: seen only
+    # a wall 1 m in front of the far ground makes it seen
+    centre2 = np.vstack([centre, [[0, -21, 1]]])
+    normal2 = np.vstack([normal, [[0, 1, 0]]])
+    tc2 = np.zeros((TILE, 5 * TILE))
+    for r in range(5):
+        tc2[:, r * TILE:(r + 1) * TILE] = r
+    s2 = PageSchedule(tc2, np.arange(5))
+    s2.geometry, s2.area = (centre2, np.full(5, 1.1), normal2), np.full(5, 2.56)
+    cam2 = (0.0, -10.0, 10.0)                          # sees the far ground and its wall's face
+    assert list(s2.facing(cam2)) == [True, True, True, False, True]
+    assert list(s2.seen(cam2)) == [True, True, True, False, True]
