@@ -54,6 +54,7 @@ def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
         info.push_constant('INT', "use_emit_tex")
         info.push_constant('INT', "albedo_base_h")
         info.push_constant('INT', "emit_base_h")
+        info.push_constant('FLOAT', "footprint_scale")
         info.sampler(0, 'FLOAT_2D', "albedo_tex")
         info.sampler(1, 'FLOAT_2D', "emit_tex")
         if instanced:
@@ -228,6 +229,7 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
         shader.bind()
         shader.uniform_float("view_proj", mathutils.Matrix(
             np.asarray(view_proj, np.float64).tolist()))
+        shader.uniform_float("footprint_scale", 1.0)
         for g in groups:
             if not len(g["pos"]):
                 continue

@@ -149,9 +149,11 @@ class MeshBatches:
             groups.append((batch, g["albedo_tex"], g["emit_tex"]))
         return _Entry(data, groups, triangles)
 
-    def draw(self, view_proj, width: int, height: int) -> dict:
+    def draw(self, view_proj, width: int, height: int, footprint_scale: float = 1.0) -> dict:
         """The G-buffer of the synced instances for `view_proj`: gbuffer.render_gbuffer's
-        output ({'textures', 'depth_texture', counts, timings}); nothing is read back."""
+        output ({'textures', 'depth_texture', counts, timings}); nothing is read back.
+        footprint_scale: the share of a pixel's texture footprint this G-buffer filters (one of
+        n anti-aliasing samples: 1 / sqrt(n); gbuffer.glsl sample_mipmapped)."""
         import mathutils
 
         t0 = time.perf_counter()
@@ -185,6 +187,7 @@ class MeshBatches:
             shader.uniform_float("view_proj", mathutils.Matrix(
                 np.asarray(view_proj, np.float64).tolist()))
             shader.uniform_sampler("instances", self.table)
+            shader.uniform_float("footprint_scale", float(footprint_scale))
             bound = None                  # the textures bound: set again only when they change
             for key, base, count in self.runs:
                 entry = self.entries[key]

@@ -2,8 +2,9 @@
  * Vertex inputs: pos, nor (world), uv (the corner's UV, zero without a UV map), albedo, emit (per
  * corner, the triangle's material values; with an emission texture emit is the strength).
  * Push constants: view_proj, use_albedo_tex, use_emit_tex, albedo_base_h, emit_base_h (the base
- * level's height). Samplers: albedo_tex, emit_tex (RGBA32F: gbuffer.mip_chain, the levels stacked
- * in rows, row 0 = v 0), read with texelFetch and filtered here: trilinear between the two mip
+ * level's height), footprint_scale (the share of the pixel's texture footprint one G-buffer
+ * filters: 1, or 1 / sqrt(n) for one of n anti-aliasing samples). Samplers: albedo_tex,
+ * emit_tex (RGBA32F: gbuffer.mip_chain, the levels stacked in rows, row 0 = v 0), read with texelFetch and filtered here: anisotropic trilinear over the mip
  * levels of the pixel's UV footprint, each bilinear with texel centres at (i + 0.5) / size and
  * wrapping (repeat); at level 0 exactly lumen_addon.materials.sample_texture. The sampler state
  * cannot be set from Python in Blender 5.0 (GPUTexture has no filter / extend mode, no mipmaps).
@@ -44,15 +45,28 @@ vec3 sample_level(sampler2D tex, vec2 uv, ivec2 size, int y0)
   return mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
 }
 
-/* Trilinear over the stacked mip chain: the level from the UV footprint of this pixel (the
- * longer of the two screen-axis derivatives, in base texels), as hardware mipmapping does. */
+/* Anisotropic trilinear filtering over the stacked mip chain, as hardware anisotropic filtering
+ * does: the pixel's UV footprint (the two screen-axis derivatives in base texels, times
+ * footprint_scale) is covered by up to MAX_ANISO trilinear taps along its longer axis, each
+ * at the level of the shorter one (the longer / taps). Why: a level from the longer axis alone
+ * blurs a floor seen at a grazing angle into its mean colour (the `textured` benchmark's far
+ * floor lost its bricks). footprint_scale < 1 when the G-buffer is one of n anti-aliasing
+ * samples (1 / sqrt(n): the samples together cover the pixel, each its share), so the pixel
+ * filter of the samples' mean is not blurred again by a whole pixel's mip footprint. */
+#define MAX_ANISO 16
 vec3 sample_mipmapped(sampler2D tex, vec2 uv, int base_h)
 {
   int w = textureSize(tex, 0).x;
   ivec2 base = ivec2(w, base_h);
-  vec2 dx = dFdx(uv) * vec2(base);
-  vec2 dy = dFdy(uv) * vec2(base);
-  float lod = max(0.5 * log2(max(max(dot(dx, dx), dot(dy, dy)), 1e-12)), 0.0);
+  vec2 du = dFdx(uv) * footprint_scale;
+  vec2 dv = dFdy(uv) * footprint_scale;
+  vec2 dx = du * vec2(base);
+  vec2 dy = dv * vec2(base);
+  float lx = length(dx), ly = length(dy);
+  float major = max(lx, ly), minor = min(lx, ly);
+  int taps = int(clamp(ceil(major / max(minor, 1e-6)), 1.0, float(MAX_ANISO)));
+  vec2 axis = lx >= ly ? du : dv;
+  float lod = max(log2(max(major / float(taps), 1e-6)), 0.0);
   int top = 0;
   for (int m = max(w, base_h); m > 1; m >>= 1) {
     top++;
@@ -66,12 +80,17 @@ vec3 sample_mipmapped(sampler2D tex, vec2 uv, int base_h)
     y += s.y;
     s = max(s / 2, ivec2(1));
   }
-  vec3 a = sample_level(tex, uv, s, y);
-  if (l1 == l0 || lod == float(l0)) {
-    return a;
+  bool two = !(l1 == l0 || lod == float(l0));
+  vec3 sum = vec3(0.0);
+  for (int i = 0; i < taps; i++) {
+    vec2 t = uv + axis * ((float(i) + 0.5) / float(taps) - 0.5);
+    vec3 a = sample_level(tex, t, s, y);
+    if (two) {
+      a = mix(a, sample_level(tex, t, max(s / 2, ivec2(1)), y + s.y), lod - float(l0));
+    }
+    sum += a;
   }
-  vec3 b = sample_level(tex, uv, max(s / 2, ivec2(1)), y + s.y);
-  return mix(a, b, lod - float(l0));
+  return sum / float(taps);
 }
 
 void main()

@@ -4,7 +4,7 @@
  * matrix's rows 0..2, the inverse transpose of its 3x3) is instance_base + gl_InstanceID.
  * Vertex inputs: pos, nor (local), uv, albedo, emit (per corner, as gbuffer.glsl's).
  * Push constants: view_proj, instance_base (and the fragment stage's: use_albedo_tex,
- * use_emit_tex, albedo_base_h, emit_base_h). The fragment stage is gbuffer.glsl's.
+ * use_emit_tex, albedo_base_h, emit_base_h, footprint_scale). The fragment stage is gbuffer.glsl's.
  */
 void main()
 {
