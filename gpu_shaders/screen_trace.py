@@ -20,10 +20,12 @@ object near the point; the screen resolves rays that hit what the camera sees (m
 rays) and shortens the rest. Why it is no less right: a screen hit is the visible surface (no
 leak: the depth buffer is the nearest surface) lit at pixel resolution; what the screen does not
 show (behind, off screen) is still traced.
-Off by default (GISettings.screen_trace), measured: the depth buffer only vouches for what the
-camera sees, and objects hidden from the camera (bench/quality.py's `thin`: its roof) are not in
-it, so rays restart on the SDFs beyond them (leak 37% there, 0.8% without); and in the Cornell
-box the hits found after 10+ HZB steps read 9% less light (cause open).
+Objects hidden from the camera (visible_camera off: bench/quality.py's `thin` has its roof so)
+are in the SDFs but not in the depth buffer, which therefore vouches for the space they fill:
+before a screen result is used, the ray is sphere-traced against those objects alone (their
+object-table rows in `screen_hidden`, SceneState.hidden_rows) up to where the screen result
+ends, and where it comes within a voxel of one the SDF trace takes over from there (before this
+guard `thin` leaked 37%).
 Debug view TRACE_METHOD (gi_trace_method.comp.glsl): per pixel, the share of its rays served by
 the screen (red), the mesh SDFs (green), the global SDF (blue), none (the sky: black).
 Needs a GPU context.
