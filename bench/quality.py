@@ -3,7 +3,8 @@
     .venv/bin/python bench/quality.py [--size 256] [--scenes cornell,window,thin]
         [--cycles-samples 1024] [--engines cycles_ref,cycles_4spp_oidn,eevee,eevee_rt,
         eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_lpv,lumen_vxgi,lumen_off,
-        lumen_rc,lumen_noscreen,lumen_screen,lumen_noaa] [--out out/quality]
+        lumen_rc,lumen_noscreen,lumen_screen,lumen_noaa,
+        lumen_noadaptive] [--out out/quality]
         [--quick] [--verbose]
 
 Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornell` (area light
@@ -39,6 +40,7 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
                       probe ray on the SDFs from its origin
     lumen_screen      lumen with the screen trace on (off by default)
     lumen_noaa        lumen without anti-aliasing (aa_samples 1: one G-buffer sample per pixel)
+    lumen_noadaptive  lumen without adaptive screen probes (adaptive_probes off)
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -80,7 +82,8 @@ import quality_scenes  # noqa: E402
 
 ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
            "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_lpv", "lumen_vxgi",
-           "lumen_off", "lumen_rc", "lumen_noscreen", "lumen_screen", "lumen_noaa")
+           "lumen_off", "lumen_rc", "lumen_noscreen", "lumen_screen", "lumen_noaa",
+           "lumen_noadaptive")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -562,7 +565,8 @@ RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "e
            "lumen_rc": run_lumen_rc,
            "lumen_noscreen": lambda ctx: run_lumen(ctx, (("screen_trace", False),)),
            "lumen_screen": lambda ctx: run_lumen(ctx, (("screen_trace", True),)),
-           "lumen_noaa": lambda ctx: run_lumen(ctx, (("aa_samples", 1),))}
+           "lumen_noaa": lambda ctx: run_lumen(ctx, (("aa_samples", 1),)),
+           "lumen_noadaptive": lambda ctx: run_lumen(ctx, (("adaptive_probes", False),))}
 
 
 # Metrics and images ----------------------------------------------------------------------------

@@ -252,6 +252,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         matrices = mesh_matrices(depsgraph)
     else:
         objects, warnings, keys, meshes, mats, visible = ext.update(depsgraph)
+        state.set_camera_hidden(objects, visible)    # the screen trace's blind spots
         matrices = ext.matrices        # the same dict object until the next walk (sync: no loop)
         t_stale = time.perf_counter()
         if ext.changed or state.stale.bake is not bake or state.stale.pending():

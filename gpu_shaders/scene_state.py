@@ -82,6 +82,9 @@ class SceneState:
         self.probes = None           # screen_probes.ScreenProbes (gi.py, per image size)
         self.radiance_cache = None   # radiance_cache.RadianceCache (gi.py, when it is on)
         self.screen_trace = None     # screen_trace.ScreenTrace of the last GI frame (gi.py)
+        self.camera_hidden = frozenset()  # instance names the camera does not see (no G-buffer
+                                          # pixel, still traced): the screen trace's blind spots
+        self._hidden_rows = (None, None, np.zeros(0, np.int32))
         self.gi_frame = 0            # frames of GI run (jitter sequences, clipmap cadence)
         self.gi_view_key = None      # camera + size of the probes' history
         self.gi_sky = None           # key of the sky maps the GI history was made with
@@ -181,6 +184,29 @@ class SceneState:
         if not rows:
             raise ValueError("the bake has no objects to trace")
         self.resources.set_objects(np.stack(rows))     # and the object grid built from them
+
+    def set_camera_hidden(self, objects, visible):
+        """Remember which extracted instances the camera does not see (ObjectInputs and their
+        camera-visibility flags, as ExtractionCache.update returns them; recomputed only when that
+        array is a new one, i.e. after a walk)."""
+        if visible is self._hidden_source:
+            return
+        self._hidden_source = visible
+        vis = np.asarray(visible, bool).reshape(-1)
+        self.camera_hidden = frozenset(objects[i].name for i in np.flatnonzero(~vis))
+
+    _hidden_source = None
+
+    def hidden_rows(self) -> np.ndarray:
+        """int32 object-table rows of the camera-hidden instances (cached per table and set)."""
+        names, hidden, rows = self._hidden_rows
+        if names is not self.names or hidden is not self.camera_hidden:
+            rows = np.zeros(0, np.int32)
+            if self.camera_hidden and self.names:
+                rows = np.flatnonzero(np.isin(np.asarray(self.names, object),
+                                              list(self.camera_hidden))).astype(np.int32)
+            self._hidden_rows = (self.names, self.camera_hidden, rows)
+        return rows
 
     def stats(self) -> dict:
         """GPU bytes per resource (resources.stats() plus the light rows)."""

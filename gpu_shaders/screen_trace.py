@@ -20,10 +20,12 @@ object near the point; the screen resolves rays that hit what the camera sees (m
 rays) and shortens the rest. Why it is no less right: a screen hit is the visible surface (no
 leak: the depth buffer is the nearest surface) lit at pixel resolution; what the screen does not
 show (behind, off screen) is still traced.
-Off by default (GISettings.screen_trace), measured: the depth buffer only vouches for what the
-camera sees, and objects hidden from the camera (bench/quality.py's `thin`: its roof) are not in
-it, so rays restart on the SDFs beyond them (leak 37% there, 0.8% without); and in the Cornell
-box the hits found after 10+ HZB steps read 9% less light (cause open).
+Objects hidden from the camera (visible_camera off: bench/quality.py's `thin` has its roof so)
+are in the SDFs but not in the depth buffer, which therefore vouches for the space they fill:
+before a screen result is used, the ray is sphere-traced against those objects alone (their
+object-table rows in `screen_hidden`, SceneState.hidden_rows) up to where the screen result
+ends, and where it comes within a voxel of one the SDF trace takes over from there (before this
+guard `thin` leaked 37%).
 Debug view TRACE_METHOD (gi_trace_method.comp.glsl): per pixel, the share of its rays served by
 the screen (red), the mesh SDFs (green), the global SDF (blue), none (the sky: black).
 Needs a GPU context.
@@ -38,7 +40,9 @@ LIBS = ("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl",
         "lumen_trace_lib.glsl")        # after gi_trace_lib.glsl
 # screen_camera: the frame's view_proj, its 4 columns in 4 RGBA32F texels (a sampler and not a
 # push constant: the probe trace's push constants would pass Vulkan's 128 bytes)
-SAMPLERS = ("gbuf_position", "gbuf_normal", "hzb", "screen_colour", "screen_camera")
+# screen_hidden: R32F, the object-table rows of the camera-hidden instances (one texel of -1: none)
+SAMPLERS = ("gbuf_position", "gbuf_normal", "hzb", "screen_colour", "screen_camera",
+            "screen_hidden")
 # screen_cam: camera position xyz, w the thickness (m) a surface is assumed behind the depth
 # buffer; screen_steps: HZB cells per ray (0: off)
 PUSH = (('VEC4', 'screen_cam'), ('INT', 'screen_steps'))
@@ -49,7 +53,7 @@ class ScreenTrace:
     iterations of one frame; rebuilt per frame)."""
 
     def __init__(self, gbuf: dict, view_proj, cam_pos, width: int, height: int, steps: int = 50,
-                 thickness: float = 0.1):
+                 thickness: float = 0.1, hidden=()):
         self.gbuf, self.width, self.height = gbuf, int(width), int(height)
         self.view_proj = np.asarray(view_proj, np.float64)
         self.camera = camera_texture(view_proj)
@@ -57,6 +61,8 @@ class ScreenTrace:
         self.steps = int(steps)
         self.hzb = hzb.depth_pyramid(gbuf, view_proj, width, height)
         self.colour = None
+        self.hidden_count = len(hidden)
+        self.hidden = hidden_texture(hidden)
 
     def light(self, direct_tex, e_history, sky):
         """The screen colour: the composite of this frame's direct light and the last gather's
@@ -78,6 +84,7 @@ class ScreenTrace:
         sh.uniform_sampler("screen_colour", self.colour if self.colour is not None
                            else self._dummy)
         sh.uniform_sampler("screen_camera", self.camera)
+        sh.uniform_sampler("screen_hidden", self.hidden)
         sh.uniform_float("screen_cam", self.cam)
         sh.uniform_int("screen_steps", self.steps if self.colour is not None else 0)
 
@@ -123,6 +130,17 @@ def camera_texture(view_proj):
     return gpu.types.GPUTexture((4, 1), format='RGBA32F', data=float_buffer(cols.reshape(1, 4, 4)))
 
 
+def hidden_texture(rows):
+    """The camera-hidden instances' object-table rows as an R32F row texture (-1: none)."""
+    import gpu
+
+    from .resources import float_buffer
+    r = np.asarray(rows, np.float32).reshape(-1)
+    if not len(r):
+        r = np.full(1, -1.0, np.float32)
+    return gpu.types.GPUTexture((len(r), 1), format='R32F', data=float_buffer(r.reshape(1, -1)))
+
+
 def bind_off(sh, gbuf: dict):
     """Bind what a tracing pass declares when the screen trace is off (steps 0: never read)."""
     dummy = compute.texture((1, 1))
@@ -132,6 +150,7 @@ def bind_off(sh, gbuf: dict):
     sh.uniform_sampler("hzb", dummy)
     sh.uniform_sampler("screen_colour", dummy)
     sh.uniform_sampler("screen_camera", dummy)
+    sh.uniform_sampler("screen_hidden", dummy)
     sh.uniform_float("screen_cam", [0.0, 0.0, 0.0, 0.0])
     sh.uniform_int("screen_steps", 0)
     return dummy

@@ -8,6 +8,11 @@ glsl/lumen_trace_lib.glsl; llvmpipe through bpy, F12).
   95% of pixels within 10%): the screen changes where a ray's light is read, not how much.
 - Open floor under a white sky, nothing else: every ray leaves into the sky, so no trace serves
   any ray (all shares exactly 0), and the floor's indirect light is the same with and without.
+- A closed room whose roof is hidden from the camera (visible_camera off), under a white sky,
+  seen from above through that roof: the depth buffer does not hold the roof, so it vouches
+  for the space the roof fills; without the hidden-object guard (lumen_trace_lib.glsl) rays
+  leaving the room upwards found the sky (the quality bench's `thin` leaked 37%). Inside, the
+  indirect light with the screen trace stays as dark as without it.
 - An emitting wall (albedo 0, Le) beside a black floor: the rays that find the wall on screen
   read its emission; the floor's indirect light agrees with the SDF-only trace within 5% in the
   mean (what the wall gives the floor: pi Le times its form factor, either way).
@@ -101,6 +106,16 @@ setup()
 render("wall", True)
 render("wall", True, "TRACE_METHOD")
 render("wall", False)
+
+# 4. a closed room whose roof the camera does not see, under a white sky, seen from above
+scene = empty_scene(voxel_density=10.0, cache_dir="roof")
+walls = closed_room(principled("Wall", (0.5, 0.5, 0.5)))
+next(w for w in walls if w.name == "Wall2+").visible_camera = False
+world((1.0, 1.0, 1.0))
+camera((0.0, -0.05, 5.0), (0.0, 0.0, -1.0), lens=50.0)
+setup()
+render("roof", True)
+render("roof", False)
 emit(**out)
 """
 
@@ -144,3 +159,14 @@ def test_screen_trace(tmp_path):
           off[floor].mean())
     assert shares[floor][:, 0].mean() > 0.05               # the wall is found on screen
     assert abs(on[floor].mean() - off[floor].mean()) <= 0.05 * off[floor].mean()
+
+    on = np.load(tmp_path / "roof_True_indirect.npy")[..., :3].mean(-1)
+    off = np.load(tmp_path / "roof_False_indirect.npy")[..., :3].mean(-1)
+    pos = np.load(tmp_path / "roof_position.npy")
+    hit = pos[..., 3] > 0.5
+    inside = hit & (np.abs(pos[..., 0]) < 1.45) & (np.abs(pos[..., 1]) < 1.15) \
+        & (pos[..., 2] < 0.95)
+    assert inside.mean() > 0.2
+    print("roof: inside indirect on/off:", on[inside].mean(), off[inside].mean())
+    assert off[inside].mean() < 0.05                       # closed: no light gets in
+    assert on[inside].mean() <= off[inside].mean() + 0.02  # nor through the hidden roof
