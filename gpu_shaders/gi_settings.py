@@ -34,6 +34,7 @@ PRESETS = {
 QUALITIES = ("OFF",) + tuple(PRESETS)
 CACHE_TEXELS_PER_FRAME = 0         # viewport surface-cache texels per frame (0: the preset's)
 MIN_PROBES_ACROSS = 16             # screen probes across an image's shorter side, at least
+MIN_PROBE_RES = 8                  # octahedral texels per side a halved-tile probe keeps, at least
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,17 @@ class GISettings:
         while t > 8 and short < MIN_PROBES_ACROSS * t:
             t //= 2
         return t
+
+    def probe_res_for(self, width: int, height: int) -> int:
+        """The probes' octahedral resolution for a width x height image: the preset's, scaled
+        with the tile probe_tile_for picks (the same rays per pixel as the preset's tile), not
+        below MIN_PROBE_RES. Why: the denser probes of a small image each trace probe_res^2
+        rays, so halving the tile alone costs 4x the probe rays."""
+        r = max(int(self.probe_res), 1)
+        t = self.probe_tile_for(width, height)
+        if t >= self.probe_tile:
+            return r
+        return min(r, max(MIN_PROBE_RES, r * t // max(int(self.probe_tile), 1)))
 
     def render_sc_share(self) -> float:
         """F12: the share of the surface-cache tiles the view does not read that each iteration
