@@ -81,3 +81,18 @@ def test_sdf_scale_rounds_to_half_octaves():
     assert sdf_scale(np.diag([1.15, 1.0, 1.0, 1.0])) == 1.0          # largest axis, rounded
     assert sdf_scale(np.diag([6.4, 6.4, 6.4, 1.0])) == 2 ** 2.5
     assert sdf_scale(np.diag([0.0, 0.0, 0.0, 1.0])) == 1.0            # singular: no rescale
+
+
+def test_open_scan_has_no_cards_for_its_inside():
+    """An open-bottomed box's backs face its enclosed inside (capped by the SDF): not surface, so
+    the cards are a closed box's six; an open sheet's back stays surface (both its sides)."""
+    from lumen_addon import cards as C
+
+    v, f = open_box()
+    s, _, _ = C.prepare(v, f, None, None, None, [])
+    assert not s.both.any()
+    assert len(C.place_cards(s, max_cards=32)) == 6
+    quad_v = np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float)
+    quad_f = np.array([[0, 1, 2], [0, 2, 3]])
+    s, _, _ = C.prepare(quad_v, quad_f, None, None, None, [])
+    assert s.both.all()
