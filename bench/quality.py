@@ -41,6 +41,10 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
     lumen_screen      lumen with the screen trace on (off by default)
     lumen_noaa        lumen without anti-aliasing (aa_samples 1: one G-buffer sample per pixel)
     lumen_noadaptive  lumen without adaptive screen probes (adaptive_probes off)
+    lumen_res4/6/8    lumen with gi_settings.MIN_PROBE_RES 4, 6 or 8: the octahedral texels per
+                      side a probe keeps when a small image halves the probe tile (4: the same
+                      rays per pixel as the preset's tile; 8: every probe 64 rays)
+    lumen_frames4/6   lumen with render_frames 4 or 6 (default 8)
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -83,7 +87,8 @@ import quality_scenes  # noqa: E402
 ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume", "lumen",
            "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_lpv", "lumen_vxgi",
            "lumen_off", "lumen_rc", "lumen_noscreen", "lumen_screen", "lumen_noaa",
-           "lumen_noadaptive")
+           "lumen_noadaptive", "lumen_res4", "lumen_res6", "lumen_res8",
+           "lumen_frames4", "lumen_frames6")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -554,6 +559,20 @@ def run_lumen_rc(ctx):
     return run_lumen(ctx, (("radiance_cache", True),))
 
 
+def run_lumen_res(ctx, res):
+    """lumen with gi_settings.MIN_PROBE_RES = res for this render (a module constant, no user
+    setting), restored after."""
+    gs = sys.modules["lumen_gi.gpu_shaders.gi_settings"]
+    saved = gs.MIN_PROBE_RES
+    gs.MIN_PROBE_RES = res
+    try:
+        out = run_lumen(ctx)
+    finally:
+        gs.MIN_PROBE_RES = saved
+    out["notes"].append(f"probe res {lumen_engine().LAST_RENDER.get('gi_probe_res')}")
+    return out
+
+
 RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "eevee": run_eevee,
            "eevee_rt": run_eevee_rt, "eevee_volume": run_eevee_volume, "lumen": run_lumen,
            "lumen_high": run_lumen_high,
@@ -566,7 +585,12 @@ RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "e
            "lumen_noscreen": lambda ctx: run_lumen(ctx, (("screen_trace", False),)),
            "lumen_screen": lambda ctx: run_lumen(ctx, (("screen_trace", True),)),
            "lumen_noaa": lambda ctx: run_lumen(ctx, (("aa_samples", 1),)),
-           "lumen_noadaptive": lambda ctx: run_lumen(ctx, (("adaptive_probes", False),))}
+           "lumen_noadaptive": lambda ctx: run_lumen(ctx, (("adaptive_probes", False),)),
+           "lumen_res4": lambda ctx: run_lumen_res(ctx, 4),
+           "lumen_res6": lambda ctx: run_lumen_res(ctx, 6),
+           "lumen_res8": lambda ctx: run_lumen_res(ctx, 8),
+           "lumen_frames4": lambda ctx: run_lumen(ctx, (("render_frames", 4),)),
+           "lumen_frames6": lambda ctx: run_lumen(ctx, (("render_frames", 6),))}
 
 
 # Metrics and images ----------------------------------------------------------------------------

@@ -339,7 +339,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        gi_progress=gi_out["progress"],
                        gi_sc_tiles=(gi_out["sc_tiles"], gi_out["sc_tiles_total"]),
                        gi_settings=gi_cfg.__dict__.copy(),
-                       gi_probe_tile=getattr(state.probes, "tile", None))
+                       gi_probe_tile=getattr(state.probes, "tile", None),
+                       gi_probe_res=getattr(state.probes, "res", None))
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
             LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])
         if view == "TRACE_METHOD" and getattr(state, "screen_trace", None) is not None:

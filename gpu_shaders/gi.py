@@ -70,9 +70,9 @@ def _probes(state, gi: GISettings, width: int, height: int):
     from .screen_probes import ScreenProbes
 
     p = state.probes
-    tile = gi.probe_tile_for(width, height)
-    if p is None or (p.width, p.height, p.tile, p.res) != (width, height, tile, gi.probe_res):
-        p = state.probes = ScreenProbes(width, height, tile, gi.probe_res)
+    tile, res = gi.probe_tile_for(width, height), gi.probe_res_for(width, height)
+    if p is None or (p.width, p.height, p.tile, p.res) != (width, height, tile, res):
+        p = state.probes = ScreenProbes(width, height, tile, res)
     return p
 
 

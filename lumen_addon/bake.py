@@ -21,7 +21,7 @@ from .geometry import MeshError, clean_mesh, orient_triangles
 from .sdf import DEFAULT_MAX_RESOLUTION, BakeCancelled, MeshSDF, bake_mesh_sdf, plan_resolution
 from .sign import INSIDE_FRACTION
 
-ALGORITHM_VERSION = 6   # bump when a change makes old bakes differ from new ones
+ALGORITHM_VERSION = 7   # bump when a change makes old bakes differ from new ones
 SDF_SHARE = 0.7         # of the progress bar; the cards take the rest
 
 
@@ -103,8 +103,23 @@ def mesh_hash(obj: ObjectInput, settings: BakeSettings) -> str:
         h.update(arr.tobytes())
     sdf_settings = (settings.voxel_density, settings.max_resolution, settings.inside_fraction)
     h.update(repr((bool(obj.two_sided), float(obj.resolution_scale), sdf_settings,
-                   ALGORITHM_VERSION)).encode())
+                   sdf_scale(obj.matrix_world), ALGORITHM_VERSION)).encode())
     return h.hexdigest()[:20]
+
+
+def sdf_scale(matrix) -> float:
+    """The world scale an SDF is baked for: world_scale rounded to a half octave (1 stays 1).
+
+    Voxel density is per metre of world size, as texel density is: the SDF is baked in local
+    space, so a mesh scaled up 6.4x (an imported scan in its file's units) baked at 20 voxels
+    per local metre had 32 cm voxels in the scene, the Stanford bunny 3 voxels across, and its
+    shadow cones saw a blob 16 cm wider than the bunny (their half-voxel margin) around its
+    base. Rounded so that instances of one mesh at similar scales still share one bake (within
+    +-19% of the asked density); objects scaled more apart bake apart, as their cards do."""
+    s = world_scale(matrix)
+    if not (np.isfinite(s) and s > 0):
+        return 1.0
+    return float(2.0 ** (np.round(2.0 * np.log2(s)) / 2.0))
 
 
 def context_key(key: str) -> str:
@@ -161,7 +176,7 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
             if checked.ignored_vertices:
                 warnings.append((obj.name, f"{checked.ignored_vertices} loose vertices (no face "
                                            f"uses them) are NaN or infinite: ignored"))
-            plan_resolution(np.ones(3), settings.voxel_density, obj.resolution_scale,
+            plan_resolution(np.ones(3), settings.voxel_density * sdf_scale(m), obj.resolution_scale,
                             settings.max_resolution)
         except MeshError as exc:
             problems.append((obj.name, str(exc)))
@@ -216,7 +231,8 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
                 progress(done + span * f, name)
 
         sub(0.0)
-        sdf = bake_mesh_sdf(obj.vertices, obj.triangles, voxel_density=settings.voxel_density,
+        sdf = bake_mesh_sdf(obj.vertices, obj.triangles,
+                            voxel_density=settings.voxel_density * sdf_scale(obj.matrix_world),
                             resolution_scale=obj.resolution_scale, two_sided=obj.two_sided,
                             max_resolution=settings.max_resolution,
                             inside_fraction=settings.inside_fraction, progress=sub,
@@ -325,4 +341,4 @@ def _bake_cards(todo: dict, settings: BakeSettings, previous, warnings, progress
 
 
 __all__ = ["BakeSettings", "ObjectInput", "Instance", "SceneBake", "SceneBakeError", "BakeCancelled",
-           "MeshSDF", "bake_scene", "mesh_hash", "__version__"]
+           "MeshSDF", "bake_scene", "mesh_hash", "sdf_scale", "__version__"]

@@ -15,7 +15,8 @@ most). Compared with depth-peeled layers over the whole bounds, each extra card 
 where unseen surface is.
 
 Both sides of a face are surface unless it belongs to a closed part (geometry.orient_triangles),
-whose backs are its inside: Cycles and EEVEE shade and emit on both sides, so the back of an open
+whose backs are its inside, or its back faces an enclosed inside (enclosed_backs: a scan with
+holes): Cycles and EEVEE shade and emit on both sides, so the back of an open
 sheet (an emissive quad, an imported wall) gets cards too (tests/gpu/test_back_emission.py).
 Coverage is measured on the captured texels: the share of area-weighted surface samples that
 some card texel sees at the sample's depth (within a tolerance that allows for the surface slope
@@ -355,6 +356,35 @@ def finish(surface: _Surface, cards, warnings) -> MeshCards:
     return MeshCards(cards, coverage, warnings)
 
 
+ENCLOSED_FRACTION = 0.75   # back-face share of rays from behind a face above which its back is inside
+
+
+def enclosed_backs(v, t, which) -> np.ndarray:
+    """bool per face (only `which` tested): its back faces an enclosed inside, as a scan's with
+    holes does (the Stanford bunny, open at its base: 32 cards, 26 of them for its inside, 6
+    without). Such a back is no surface: no ray reaches it (the SDF caps the holes, sign.py).
+
+    A point just behind the face's centre is inside when more than ENCLOSED_FRACTION of its rays
+    hit back faces (sign.SignTester). Behind an open sheet half of them do (the sheet itself):
+    its back stays surface, with a margin over the SDF's 0.5 (tests/gpu/test_back_emission.py).
+    """
+    from .sign import SignTester
+
+    out = np.zeros(len(t), bool)
+    idx = np.flatnonzero(which)
+    if not len(idx):
+        return out
+    tri = v[t[idx]]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+    used = v[np.unique(t)]
+    lo, hi = used.min(axis=0), used.max(axis=0)
+    eps = 1e-4 * float(np.linalg.norm(hi - lo))
+    tester = SignTester(v, t, inside_fraction=ENCLOSED_FRACTION, origin=0.5 * (lo + hi))
+    out[idx] = tester.inside(tri.mean(axis=1) - eps * n)
+    return out
+
+
 def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=16384, seed=0,
             two_sided=False, orientation=None):
     """Validate the mesh and its attributes; drop what is unusable with a warning.
@@ -400,5 +430,7 @@ def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=
     if uvs is None and any(m.base_color_texture is not None or m.emission_texture is not None for m in mats):
         warnings.append("a material has a texture but the mesh has no UVs: base colour used instead")
     open_faces = None if mesh.orientation is None else mesh.orientation.part != CLOSED
+    if open_faces is not None and open_faces.any():
+        open_faces &= ~enclosed_backs(mesh.vertices, mesh.triangles, open_faces)
     surface = _Surface(mesh.vertices, mesh.triangles, samples, seed, two_sided, open_faces)
     return surface, {"normals": normals, "uvs": uvs, "material_ids": material_ids, "materials": mats}, warnings

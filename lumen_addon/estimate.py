@@ -19,7 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .bake import sdf_scale
 from .sdf import plan_resolution
+
+
+def _sdf_scale(world_scale: float) -> float:
+    """bake.sdf_scale of an object whose largest axis scale is world_scale."""
+    return sdf_scale(np.diag([world_scale, world_scale, world_scale, 1.0]))
+
 
 # Least-squares fits (relative error) to 15 bakes of bench/bake_estimate.py: 5.9k to 1.6M
 # triangles at 64, 126 and 252 voxels; largest error 24% (memory) and 26% (CPU seconds).
@@ -56,7 +63,7 @@ class MeshSize:
     triangles: int
     extent: tuple                    # local bounds size (x, y, z), metres
     resolution_scale: float = 1.0
-    world_scale: float = 1.0         # largest axis scale of the object (card texels)
+    world_scale: float = 1.0         # largest axis scale of the object (voxels, card texels)
     instances: int = 1
 
 
@@ -92,8 +99,8 @@ def estimate(meshes, settings) -> Estimate:
     for i, m in enumerate(meshes):           # a loop over meshes, not their elements
         ext = np.maximum(np.nan_to_num(np.asarray(m.extent, np.float64), nan=0.0), 0.0)
         try:
-            _, res, _ = plan_resolution(ext, settings.voxel_density, m.resolution_scale,
-                                        settings.max_resolution)
+            _, res, _ = plan_resolution(ext, settings.voxel_density * _sdf_scale(m.world_scale),
+                                        m.resolution_scale, settings.max_resolution)
         except Exception:                    # the bake reports a bad request with its reason
             continue
         samples[i] = float(np.prod(np.asarray(res, np.float64) + 1))

@@ -30,12 +30,12 @@ def _signature(obj) -> tuple:
 
 def differs(obj, inst, settings, digests=None) -> bool:
     """Whether `obj` (ObjectInput) bakes differently from its baked instance `inst`, with the
-    bake's settings. The cards are hashed at the instance's baked scale: scaling an object
-    changes its texel density, not what it is."""
-    key = mesh_hash(obj, settings)
+    bake's settings. The SDF and the cards are hashed at the instance's baked scale: scaling an
+    object changes its voxel and texel density (bake.sdf_scale), not what it is."""
+    placed = dataclasses.replace(obj, matrix_world=inst.matrix_world)
+    key = mesh_hash(placed, settings)
     if inst.mesh not in (key, context_key(key)):
         return True
-    placed = dataclasses.replace(obj, matrix_world=inst.matrix_world)
     return cards_hash(placed, inst.mesh, settings, digests) != inst.cards
 
 

@@ -70,7 +70,8 @@ class LumenBakeSettings(bpy.types.PropertyGroup):
 
     voxel_density: FloatProperty(
         name="Voxel Density",
-        description="How finely the bake records each object's shape, in samples per metre. "
+        description="How finely the bake records each object's shape, in samples per metre of its size in "
+                    "the scene (a scaled object gets as many as an unscaled one of its size). "
                     "Higher keeps thin parts and narrow gaps from leaking or blocking light, but "
                     "the bake takes longer and needs more memory",
         default=BAKE.voxel_density, min=0.1, soft_max=100.0)

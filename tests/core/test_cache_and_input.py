@@ -18,7 +18,7 @@ def scene_bake():
     sv, sf = shapes.icosphere(0.5, 3)
     bv, bf = shapes.box()
     glow = Material(base_color=(0.9, 0.2, 0.1), emission_color=(1, 1, 1), emission_strength=3.0)
-    objs = [ObjectInput("Sphere", sv, sf), ObjectInput("Sphere.001", sv, sf, np.diag([2.0, 2, 2, 1])),
+    objs = [ObjectInput("Sphere", sv, sf), ObjectInput("Sphere.001", sv, sf, np.diag([1.1, 1.1, 1.1, 1])),
             ObjectInput("Box", bv, bf, two_sided=True, materials=[glow])]
     return bake_scene(objs, BakeSettings(voxel_density=16))
 
@@ -50,6 +50,7 @@ def assert_same(a, b):
 
 
 def test_instances_share_one_bake(scene_bake):
+    # Sphere.001 is 1.1x: within bake.sdf_scale's half octave of Sphere, so one SDF for both
     assert len(scene_bake.instances) == 3 and len(scene_bake.meshes) == 2
     assert scene_bake.stats()["unique_meshes"] == 2
 
