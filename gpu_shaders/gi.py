@@ -134,7 +134,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         # one iteration; the surface cache's tiles blend by their own counts (plan() above)
         m = probes.history is not None and probes.frames or 0
         schedule = [(1.0, max(1.0 / (m + 1), 1.0 / gi.history))]
-    result, relit, gathered = None, 0, 0
+    result, relit, gathered, last = None, 0, 0, None
     relight = final or scene_changed         # the voxel lighting holds light from before a reset
     for sc_blend, px_blend in schedule:
         frame = state.gi_frame
@@ -173,7 +173,10 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 rc = {} if gather is not None else {"importance": gi.probe_importance,
                                                  "adaptive": gi.adaptive_probes}
                 if screen is not None and probes.history is not None:
-                    screen.light(direct, probes.history, sky)   # last gather's light
+                    # F12: the last gather's own light (the running mean lags behind the cache's
+                    # bounces); the viewport: the history (its converged light)
+                    screen.light(direct, last if final and last is not None
+                                 else probes.history, sky)
                     rc["screen"] = screen
                 if rcache is not None:
                     rc.update(rcache=rcache, rc_budget=gi.rc_budget, rc_blend=0.25,
@@ -184,6 +187,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels,
                                     **rc)
                 gathered += 1
+            last = new
             result = probes.temporal(new, px_blend)
         timings["gsdf"] += b - a
         timings["voxel_lighting"] += (v - b) + (c2 - c)

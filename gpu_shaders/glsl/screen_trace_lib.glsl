@@ -8,8 +8,9 @@
  *   otherwise it descends; at level 0 the segment inside the pixel is tested against the
  *   pixel's surface plane (G-buffer position and normal): it hits where it crosses the plane
  *   from in front, or if it entered the pixel behind the plane by at most `thickness` metres
- *   (surfaces are assumed that thick: the depth buffer has no back faces); past that it walks
- *   on behind the surface. (The plane and not the pixel's centre depth: at a grazing angle one
+ *   moving against the surface's normal (surfaces are assumed that thick: the depth buffer has
+ *   no back faces; a ray moving with the normal is leaving from behind a thin wall and would
+ *   meet its unseen back); otherwise it walks on behind the surface. (The plane and not the pixel's centre depth: at a grazing angle one
  *   pixel spans a long stretch of its surface.)
  * At most max_steps cells are visited (the lecture: 50). The world ray is clipped to the near and
  * far planes, its screen line to the image.
@@ -122,7 +123,11 @@ float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, 
         hit_px = cell;
         return ta + (tb - ta) * da / (da - db);
       }
-      if (da < 0.0 && da >= -thickness) {   /* entered the pixel behind it, within the thickness */
+      if (da < 0.0 && da >= -thickness && dot(dir, ns) < 0.0) {
+        /* entered the pixel behind it, within the thickness, going the way the surface faces
+         * away from: a hit on it. Going the other way the ray is behind a wall on its way out
+         * (a thin wall seen from outside, the ray from inside): what it meets is the wall's
+         * back, which the screen does not show (the sunlit outside was read there: leak) */
         hit_px = cell;
         return ta;
       }
