@@ -76,7 +76,7 @@ def original(tmp_path_factory):
     sv, sf = shapes.icosphere(0.5, 2)
     bv, bf = shapes.box()
     glow = Material(base_color=(0.9, 0.2, 0.1), emission_color=(1, 1, 1), emission_strength=3.0)
-    objs = [ObjectInput("Sphere", sv, sf), ObjectInput("Sphere.001", sv, sf, np.diag([2.0, 2, 2, 1])),
+    objs = [ObjectInput("Sphere", sv, sf), ObjectInput("Sphere.001", sv, sf, np.diag([1.1, 1.1, 1.1, 1])),
             ObjectInput("Box", bv, bf, two_sided=True, materials=[glow])]
     bake = bake_scene(objs, BakeSettings(voxel_density=6, texel_density=8))
     folder = tmp_path_factory.mktemp("original")
