@@ -166,6 +166,7 @@ def test_bright_patch_less_variance_same_mean(tmp_path):
 
 
 BOXES = COMMON + """
+gi_settings.MIN_PROBES_ACROSS = 4      # keep 16 px tiles at 64 px (the density rule would halve them)
 scene = empty_scene(voxel_density=16.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=4.0)
 bpy.context.object.data.materials.append(principled("Floor", (0.6, 0.6, 0.6)))
