@@ -85,6 +85,7 @@ class SceneState:
         self.camera_hidden = frozenset()  # instance names the camera does not see (no G-buffer
                                           # pixel, still traced): the screen trace's blind spots
         self._hidden_rows = (None, None, np.zeros(0, np.int32))
+        self._hidden_source = None   # the visibility array camera_hidden was made from
         self.gi_frame = 0            # frames of GI run (jitter sequences, clipmap cadence)
         self.gi_view_key = None      # camera + size of the probes' history
         self.gi_sky = None           # key of the sky maps the GI history was made with
@@ -194,8 +195,6 @@ class SceneState:
         self._hidden_source = visible
         vis = np.asarray(visible, bool).reshape(-1)
         self.camera_hidden = frozenset(objects[i].name for i in np.flatnonzero(~vis))
-
-    _hidden_source = None
 
     def hidden_rows(self) -> np.ndarray:
         """int32 object-table rows of the camera-hidden instances (cached per table and set)."""
