@@ -1,6 +1,6 @@
 /* Screen probes, spatial filter (lecture: "Denoise: Spatial filtering for Probe"): each probe
- * texel averages the same direction's texel of the 3x3 neighbouring probes (16x16 pixels each:
- * a 48x48 pixel filter for the price of 9 reads), weighted by
+ * texel averages the same direction's texel of the 3x3 neighbouring probes (a tile each, 16 or
+ * 8 px: GISettings.probe_tile_for; a 3x3-tile filter for the price of 9 reads), weighted by
  *   - a plane weight: the neighbour's distance to this probe's tangent plane relative to the
  *     probe's camera distance, exp2(-FILTER_SHARPNESS rel^2) (depth weighting; normals ignored);
  *   - angle-error rejection: the neighbour's hit point seen from this probe must lie within
