@@ -26,7 +26,6 @@ from blender_runner import run_python  # noqa: E402
 LE, SIDE, HEIGHT = 2.0, 0.5, 0.8
 
 SNIPPET = f"""
-import mathutils
 from lumen_gi.gpu_shaders import engine, gi_settings
 
 scene = empty_scene(voxel_density=10.0, cache_dir="cache")
@@ -38,11 +37,7 @@ w = bpy.data.worlds.new("World")
 scene.world = w
 w.use_nodes = True
 w.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-cam = link(bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam")))
-scene.camera = cam
-cam.location = (0.0, -2.6, 2.2)
-cam.rotation_euler = (mathutils.Vector((0.0, 0.3, 0.0)) - cam.location).to_track_quat("-Z", "Y").to_euler()
-cam.data.lens = 24.0
+aimed_camera((0.0, -2.6, 2.2), (0.0, 0.3, 0.0)).data.lens = 24.0
 scene.render.engine = "LUMEN_GI"
 scene.render.resolution_x = scene.render.resolution_y = 128
 scene.render.resolution_percentage = 100

@@ -16,7 +16,6 @@ from blender_runner import run_python  # noqa: E402
 
 SNIPPET = """
 import dataclasses
-import mathutils
 from lumen_gi.gpu_shaders import engine, gi_settings
 
 SHARE = {"f": None}
@@ -26,11 +25,7 @@ gi_settings.from_scene = lambda s, viewport=False: (
     else dataclasses.replace(original(s, viewport), render_sc_fraction=SHARE["f"]))
 
 def camera(location, target, lens=18.0):
-    cam = link(bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam")))
-    bpy.context.scene.camera = cam
-    cam.location = location
-    cam.rotation_euler = (mathutils.Vector(target) - cam.location).to_track_quat("-Z", "Y").to_euler()
-    cam.data.lens = lens
+    aimed_camera(location, target).data.lens = lens
 
 def render(f):
     SHARE["f"] = f
