@@ -108,8 +108,7 @@ def resolve_indirect(gbuf: dict, base: dict, e_base, jitter, foot, cam_pos, widt
     out = compute.texture((width, height))
     sh = compute.shader("aa_resolve", samplers=("gbuf_position", "gbuf_normal", "base_position",
                                                 "base_normal", "e_base"),
-                        push=(('VEC3', 'cam_pos'), ('VEC2', 'jitter'), ('VEC2', 'footprint')),
-                        libs=("gbuffer_lib.glsl",))
+                        push=(('VEC3', 'cam_pos'), ('VEC2', 'jitter'), ('VEC2', 'footprint')))
     sh.uniform_sampler("gbuf_position", gbuf["textures"]["position"])
     sh.uniform_sampler("gbuf_normal", gbuf["textures"]["normal"])
     sh.uniform_sampler("base_position", base["textures"]["position"])

@@ -17,8 +17,7 @@ def composite(gbuf: dict, direct_tex, indirect_tex, sky, inv_view_proj, width: i
     indirect = compute.texture((width, height))
     sh = compute.shader("composite", samplers=("gbuf_position", "gbuf_albedo", "gbuf_emission",
                                                "direct", "indirect"),
-                        images=("out_image", "indirect_out"), push=(('MAT4', 'inv_view_proj'),),
-                        libs=("camera_lib.glsl",), sky=True)
+                        images=("out_image", "indirect_out"), push=(('MAT4', 'inv_view_proj'),))
     sh.uniform_sampler("gbuf_position", g["position"])
     sh.uniform_sampler("gbuf_albedo", g["albedo"])
     sh.uniform_sampler("gbuf_emission", g["emission"])

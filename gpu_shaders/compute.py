@@ -13,7 +13,8 @@ from __future__ import annotations
 import gpu
 import numpy as np
 
-from .resources import SceneResources, glsl, read_texture
+from . import glsl_include
+from .resources import SceneResources, read_texture
 
 GROUP = 8
 _SHADERS = {}
@@ -50,33 +51,35 @@ def run(sh, groups_x: int, groups_y: int = 1, groups_z: int = 1):
     gpu.compute.dispatch(sh, int(groups_x), int(groups_y), int(groups_z))
 
 
-def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), scene=False,
-           surface_cache=False, global_sdf=False, sky=False):
-    """The compute shader of glsl/<name>.comp.glsl (cached by name). images: names or
-    (name, format) or (name, format, qualifiers such as {'READ', 'WRITE'}: write-only unless
-    given); push: (type, name). sky: sky_lib.glsl and its sampler (implied by gi_trace_lib.glsl,
-    whose rays read the sky where they leave the scene)."""
+def owners(files) -> list:
+    """The declare functions of the libraries among `files` (glsl_include.files), in slot order:
+    a pass that includes sdf_lib.glsl gets SceneResources' samplers, and so on."""
+    from .global_sdf import GlobalSDF
+    from .sky_light import SkyLight
+    from .surface_cache import SurfaceCache
+    table = (("sdf_lib.glsl", SceneResources.declare),
+             ("surface_cache_lib.glsl", SurfaceCache.declare),
+             ("global_sdf_lib.glsl", GlobalSDF.declare), ("sky_lib.glsl", SkyLight.declare))
+    return [declare for lib, declare in table if lib in files]
+
+
+def declare_libs(info, name: str, slot: int = 0):
+    """Declare the samplers of the libraries glsl/<name> includes on info; returns (source of
+    name with its includes resolved, next free sampler slot)."""
+    for declare in owners(glsl_include.files(name)):
+        slot = declare(info, slot)
+    return glsl_include.source(name), slot
+
+
+def shader(name: str, *, samplers=(), images=("out_image",), push=()):
+    """The compute shader of glsl/<name>.comp.glsl and the libraries it #includes (cached by
+    name); the samplers of sdf_lib, surface_cache_lib, global_sdf_lib and sky_lib come with
+    them. images: names or (name, format) or (name, format, qualifiers such as {'READ',
+    'WRITE'}: write-only unless given); push: (type, name)."""
     if name in _SHADERS:
         return _SHADERS[name]
     info = new_info()
-    slot = 0
-    src = []
-    if scene:
-        slot = SceneResources.declare(info, slot)
-        src += [glsl("sdf_lib.glsl"), glsl("sdf_ray_lib.glsl")]
-    if surface_cache:
-        from .surface_cache import SurfaceCache
-        slot = SurfaceCache.declare(info, slot)
-    if global_sdf:
-        from .global_sdf import GlobalSDF
-        slot = GlobalSDF.declare(info, slot)
-        src.append(glsl("global_sdf_lib.glsl"))
-    if surface_cache:
-        src.append(glsl("surface_cache_lib.glsl"))
-    if sky or "gi_trace_lib.glsl" in libs:
-        from .sky_light import SkyLight
-        slot = SkyLight.declare(info, slot)
-        src.append(glsl("sky_lib.glsl"))
+    src, slot = declare_libs(info, name + ".comp.glsl")
     for s in samplers:
         info.sampler(slot, 'FLOAT_2D', s)
         slot += 1
@@ -89,8 +92,7 @@ def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), s
                    qualifiers=set(access))
     for kind, pname in push:
         info.push_constant(kind, pname)
-    src += [glsl(lib) for lib in libs] + [glsl(name + ".comp.glsl")]
-    _SHADERS[name] = create(info, "\n".join(src))
+    _SHADERS[name] = create(info, src)
     return _SHADERS[name]
 
 

@@ -42,9 +42,7 @@ def direct_shader():
         info.push_constant('INT', 'sample_plan')   # samples + 256 first + 65536 take (128 B)
         info.push_constant('INT', 'sky_cones')
         info.push_constant('MAT4', 'inv_view_proj')
-        _SHADER["direct"] = compute.create(info, "\n".join(glsl(name) for name in (
-            "sdf_lib.glsl", "light_lib.glsl", "sky_lib.glsl", "camera_lib.glsl",
-            "direct_light.comp.glsl")))
+        _SHADER["direct"] = compute.create(info, glsl("direct_light.comp.glsl"))
     return _SHADER["direct"]
 
 

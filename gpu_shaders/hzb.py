@@ -16,7 +16,6 @@ import numpy as np
 
 from . import compute
 
-LIBS = ("mip_lib.glsl",)
 
 
 def mip_layout(width: int, height: int):
@@ -59,7 +58,7 @@ def depth_pyramid(gbuf: dict, view_proj, width: int, height: int):
     sh.image("hzb", atlas)
     compute.dispatch(sh, width, height)
     sh = compute.shader("hzb_reduce", images=(("hzb", 'R32F', {'READ', 'WRITE'}),),
-                        push=(('INT', 'level'), ('IVEC2', 'base')), libs=LIBS)
+                        push=(('INT', 'level'), ('IVEC2', 'base')))
     _reduce(sh, "hzb", atlas, width, height, 1)
     return atlas
 
@@ -72,7 +71,7 @@ def colour_pyramid(source, gbuf: dict, width: int, height: int):
     atlas = compute.texture(size)
     sh = compute.shader("colour_mip", samplers=("source", "gbuf_position"),
                         images=(("colour", 'RGBA32F', {'READ', 'WRITE'}),),
-                        push=(('INT', 'level'), ('IVEC2', 'base')), libs=LIBS)
+                        push=(('INT', 'level'), ('IVEC2', 'base')))
     sh.uniform_sampler("source", source)
     sh.uniform_sampler("gbuf_position", gbuf["textures"]["position"])
     _reduce(sh, "colour", atlas, width, height, 0)

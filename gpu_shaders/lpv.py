@@ -86,7 +86,7 @@ def _inject_shader():
         info.vertex_out(iface)
         for slot, c in enumerate(GRID):
             info.fragment_out(slot, 'VEC4', "out_" + c)
-        info.vertex_source(glsl("lpv_lib.glsl") + "\n" + vert)
+        info.vertex_source(vert)
         info.fragment_source(frag)
         _SHADERS["inject"] = gpu.shader.create_from_info(info)
     return _SHADERS["inject"]
@@ -132,8 +132,7 @@ def geometry(resources, origin, h, dims, occlusion: bool = True):
         tex.clear(format='FLOAT', value=(1.0, 1.0, 1.0, 1.0))
         return tex
     out = compute.texture(size)
-    sh = compute.shader("lpv_geometry", push=(('VEC4', 'grid_origin'), ('IVEC4', 'grid_dims')),
-                        libs=("lpv_lib.glsl",), scene=True)
+    sh = compute.shader("lpv_geometry", push=(('VEC4', 'grid_origin'), ('IVEC4', 'grid_dims')))
     resources.bind(sh)
     _grid_push(sh, origin, h, dims)
     sh.image("out_image", out)
@@ -156,7 +155,7 @@ def propagate(src: dict, geometry_tex, dims, iterations: int, work=None):
         "lpv_propagate", samplers=("src_r", "src_g", "src_b", "geometry"),
         images=tuple(("out_" + c) for c in GRID) + tuple(
             ("acc_" + c, 'RGBA32F', {'READ', 'WRITE'}) for c in GRID),
-        push=(('IVEC4', 'grid_dims'), ('INT', 'first')), libs=("lpv_lib.glsl",))
+        push=(('IVEC4', 'grid_dims'), ('INT', 'first')))
     cur, nxt = src, ping
     for k in range(int(iterations)):
         for c in GRID:
@@ -178,8 +177,7 @@ def gather(gbuf: dict, acc: dict, origin, h, dims, cam_pos, width: int, height: 
     sh = compute.shader("lpv_gather", samplers=("gbuf_position", "gbuf_normal", "acc_r", "acc_g",
                                                 "acc_b"),
                         push=(('VEC4', 'grid_origin'), ('IVEC4', 'grid_dims'),
-                              ('VEC3', 'cam_pos')),
-                        libs=("gbuffer_lib.glsl", "lpv_lib.glsl"))
+                              ('VEC3', 'cam_pos')))
     sh.uniform_sampler("gbuf_position", g["position"])
     sh.uniform_sampler("gbuf_normal", g["normal"])
     for c in GRID:

@@ -46,11 +46,7 @@ from . import compute, voxel_lighting
 
 LEVELS, N, RES, SLOT_W = 4, 32, 8, 64          # radiance_cache_layout_lib.glsl's RC_*
 RADIUS = 3.0 ** 0.5                              # RC_RADIUS, in spacings
-LAYOUT = ("octahedral_lib.glsl", "radiance_cache_layout_lib.glsl")
-LOOKUP = LAYOUT + ("radiance_cache_lib.glsl",)   # after gi_trace_lib.glsl for rc_radiance
-MARK = LAYOUT + ("radiance_cache_mark_lib.glsl",)
 SAMPLERS = ("rc_cells", "rc_slots", "rc_state", "rc_atlas", "rc_miss")
-GI_LIBS = ("sampling_lib.glsl",) + voxel_lighting.LIBS + ("gi_trace_lib.glsl",)
 CAMERA = ('VEC4', 'rc_camera')
 
 
@@ -109,7 +105,7 @@ class RadianceCache:
                                     ("rc_free_out", 'R32F'),
                                     ("rc_counter", 'R32I', {'READ', 'WRITE'})),
                             push=(CAMERA, ('INT', 'rc_frame'), ('INT', 'rc_keep'),
-                                  ('INT', 'rc_reset')), libs=LAYOUT)
+                                  ('INT', 'rc_reset')))
         sh.uniform_sampler("rc_marks", self.marks)
         sh.uniform_float("rc_camera", cam)
         sh.uniform_int("rc_frame", frame)
@@ -127,7 +123,7 @@ class RadianceCache:
                                     ("rc_slots_io", 'RGBA32F', {'READ', 'WRITE'}),
                                     ("rc_state_io", 'RGBA32F', {'READ', 'WRITE'}),
                                     ("rc_counter", 'R32I', {'READ', 'WRITE'})),
-                            push=(CAMERA, ('INT', 'rc_frame')), libs=LAYOUT)
+                            push=(CAMERA, ('INT', 'rc_frame')))
         sh.uniform_sampler("rc_marks", self.marks)
         sh.uniform_sampler("rc_free", self.free)
         sh.uniform_float("rc_camera", cam)
@@ -142,8 +138,7 @@ class RadianceCache:
                             images=(("rc_list_out", 'RGBA32F'),
                                     ("rc_counter", 'R32I', {'READ', 'WRITE'})),
                             push=(('INT', 'rc_phase'), ('INT', 'rc_cap'), ('INT', 'rc_cursor'),
-                                  ('INT', 'rc_window'), CAMERA),
-                            libs=LAYOUT)   # (the layout lib names rc_camera)
+                                  ('INT', 'rc_window'), CAMERA))   # (the layout lib names rc_camera)
         for phase in (0, 1):
             sh.uniform_sampler("rc_slots", self.slots)
             sh.uniform_sampler("rc_state", self.state)
@@ -163,9 +158,7 @@ class RadianceCache:
                                         ("rc_state_io", 'RGBA32F', {'READ', 'WRITE'}),
                                         ("rc_miss_io", 'R32F', {'READ', 'WRITE'})),
                                 push=(CAMERA, ('INT', 'rc_frame'), ('VEC2', 'rc_jitter'),
-                                      ('FLOAT', 't_max'), ('FLOAT', 'rc_blend')),
-                                libs=LAYOUT + GI_LIBS, scene=True, surface_cache=True,
-                                global_sdf=True)
+                                      ('FLOAT', 't_max'), ('FLOAT', 'rc_blend')))
             resources.bind(sh)
             cache.bind(sh)
             gsdf.bind(sh)
@@ -202,9 +195,7 @@ class RadianceCache:
                             + voxel_lighting.SAMPLERS,
                             images=(("probe_radiance_io", 'RGBA32F', {'READ', 'WRITE'}),),
                             push=(CAMERA, ('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
-                                  ('FLOAT', 't_max')),
-                            libs=GI_LIBS + LOOKUP + ("screen_probe_ray_lib.glsl",), scene=True,
-                            surface_cache=True, global_sdf=True)
+                                  ('FLOAT', 't_max')))
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
@@ -247,8 +238,7 @@ class RadianceCache:
         g = gbuf["textures"]
         sh = compute.shader("radiance_cache_view",
                             samplers=("gbuf_position", "gbuf_normal") + SAMPLERS,
-                            push=(('VEC3', 'cam_pos'), CAMERA),
-                            libs=("gbuffer_lib.glsl",) + LOOKUP, sky=True)
+                            push=(('VEC3', 'cam_pos'), CAMERA))
         sky.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("gbuf_position", g["position"])

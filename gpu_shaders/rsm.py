@@ -30,7 +30,6 @@ import numpy as np
 from . import compute
 
 SPOT_MAX_HALF = math.radians(80.0)   # a wider spot's map would spend its texels near the edges
-LIBS = ("sampling_lib.glsl", "gbuffer_lib.glsl")
 
 
 def scene_bounds(objects):
@@ -179,7 +178,7 @@ class RSM:
                                                     "rsm_position", "rsm_normal", "rsm_flux"),
                             images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),),
                             push=(('MAT4', 'light_vp'), ('VEC3', 'cam_pos'), ('INT', 'samples'),
-                                  ('INT', 'frame'), ('INT', 'accumulate')), libs=LIBS)
+                                  ('INT', 'frame'), ('INT', 'accumulate')))
         for k, m in enumerate(self.maps):
             t = m["textures"]
             sh.uniform_sampler("gbuf_position", g["position"])

@@ -41,8 +41,6 @@ import numpy as np
 from . import compute, radiance_cache, screen_trace, voxel_lighting
 from .probe_math import hammersley
 
-GI_LIBS = (("sampling_lib.glsl", "octahedral_lib.glsl") + voxel_lighting.LIBS
-           + ("gi_trace_lib.glsl",))
 VL = voxel_lighting.SAMPLERS      # every pass that traces reads the voxel lighting at far hits
 
 
@@ -109,8 +107,7 @@ class ScreenProbes:
                                           "probe_uniform_normal"),
                                 images=("out_image", "probe_normal_out"),
                                 push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'),
-                                      ('VEC2', 'tile_jitter'), ('INT', 'uniform_rows')),
-                                libs=("probe_interp_lib.glsl",))
+                                      ('VEC2', 'tile_jitter'), ('INT', 'uniform_rows')))
             sh.uniform_sampler("gbuf_position", g["position"])
             sh.uniform_sampler("gbuf_normal", g["normal"])
             sh.uniform_sampler("probe_uniform", tex["uniform_info"])
@@ -149,9 +146,7 @@ class ScreenProbes:
                             images=("out_image", ("rc_marks", 'R32F')),
                             push=(screen_trace.PUSH[0], radiance_cache.CAMERA,
                                   ('VEC2', 'ray_jitter'), ('INT', 'probe_res'), ('FLOAT', 't_max'),
-                                  ('INT', 'rc_frame'), screen_trace.PUSH[1]),
-                            libs=GI_LIBS + ("screen_probe_ray_lib.glsl",) + radiance_cache.MARK
-                            + screen_trace.LIBS, scene=True, surface_cache=True, global_sdf=True)
+                                  ('INT', 'rc_frame'), screen_trace.PUSH[1]))
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
@@ -184,7 +179,7 @@ class ScreenProbes:
             sh = compute.shader("screen_probe_compose",
                                 samplers=("probe_traced", "probe_plan", "probe_prior"),
                                 images=("out_image", "probe_history_out"),
-                                push=(('INT', 'probe_res'),), libs=("octahedral_lib.glsl",))
+                                push=(('INT', 'probe_res'),))
             sh.uniform_sampler("probe_traced", tex["traced"])
             sh.uniform_sampler("probe_plan", tex["plan"])
             sh.uniform_sampler("probe_prior", tex["prior"])
@@ -197,8 +192,7 @@ class ScreenProbes:
 
         tex["links"] = compute.texture((aw, ah), 'R32F')
         sh = compute.shader("screen_probe_links", samplers=("probe_info", "probe_normal"),
-                            images=(("out_image", 'R32F'),), push=(('IVEC2', 'uniform_grid'),),
-                            scene=True)
+                            images=(("out_image", 'R32F'),), push=(('IVEC2', 'uniform_grid'),))
         sh.uniform_int("uniform_grid", [gw, gh])
         resources.bind(sh)
         sh.uniform_sampler("probe_info", tex["info"])
@@ -211,8 +205,7 @@ class ScreenProbes:
                             samplers=("probe_info", "probe_normal", "probe_radiance",
                                       "probe_links"),
                             push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
-                                  ('IVEC2', 'uniform_grid')),
-                            libs=("octahedral_lib.glsl",))
+                                  ('IVEC2', 'uniform_grid')))
         sh.uniform_int("uniform_grid", [gw, gh])
         sh.uniform_sampler("probe_links", tex["links"])
         sh.uniform_sampler("probe_info", tex["info"])
@@ -226,8 +219,7 @@ class ScreenProbes:
 
         tex["sh"] = compute.texture((aw * 3, ah * 3))
         sh = compute.shader("screen_probe_sh", samplers=("probe_info", "probe_filtered"),
-                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')),
-                            libs=("octahedral_lib.glsl", "sh_lib.glsl"))
+                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')))
         sh.uniform_sampler("probe_info", tex["info"])
         sh.uniform_sampler("probe_filtered", tex["filtered"])
         sh.uniform_int("probe_res", r)
@@ -242,10 +234,7 @@ class ScreenProbes:
                             images=("out_image", ("rc_marks", 'R32F')),
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
                                   ('FLOAT', 't_max'), radiance_cache.CAMERA,
-                                  ('INT', 'uniform_rows')),
-                            libs=("gbuffer_lib.glsl", "sh_lib.glsl", "probe_interp_lib.glsl")
-                            + GI_LIBS + radiance_cache.LOOKUP + radiance_cache.MARK,
-                            scene=True, surface_cache=True, global_sdf=True)
+                                  ('INT', 'uniform_rows')))
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
@@ -281,8 +270,7 @@ class ScreenProbes:
                                       "hist_info", "hist_normal", "hist_radiance"),
                             images=(("out_image", 'R32F'), "probe_plan", "probe_prior"),
                             push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'probe_res'),
-                                  ('INT', 'frame'), ('INT', 'uniform_rows')),
-                            libs=("sampling_lib.glsl", "octahedral_lib.glsl"))
+                                  ('INT', 'frame'), ('INT', 'uniform_rows')))
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
         sh.uniform_sampler("probe_info", tex["info"])
@@ -336,9 +324,7 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     out = compute.texture((width, height))
     sh = compute.shader("pixel_gather", samplers=("gbuf_position", "gbuf_normal") + VL,
                         push=(('VEC3', 'cam_pos'), ('INT', 'rays'), ('INT', 'frame'),
-                              ('FLOAT', 't_max')),
-                        libs=("gbuffer_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
-                        global_sdf=True)
+                              ('FLOAT', 't_max')))
     resources.bind(sh)
     cache.bind(sh)
     gsdf.bind(sh)
@@ -365,9 +351,7 @@ def trace_view(resources, gsdf, cache, sky, inv_view_proj, width: int, height: i
 
     out = compute.texture((width, height))
     sh = compute.shader("gi_trace_view", samplers=VL,
-                        push=(('MAT4', 'inv_view_proj'), ('FLOAT', 't_max')),
-                        libs=("camera_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
-                        global_sdf=True)
+                        push=(('MAT4', 'inv_view_proj'), ('FLOAT', 't_max')))
     resources.bind(sh)
     cache.bind(sh)
     gsdf.bind(sh)

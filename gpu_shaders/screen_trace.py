@@ -36,8 +36,6 @@ import numpy as np
 
 from . import compute, hzb
 
-LIBS = ("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl",
-        "lumen_trace_lib.glsl")        # after gi_trace_lib.glsl
 # screen_camera: the frame's view_proj, its 4 columns in 4 RGBA32F texels (a sampler and not a
 # push constant: the probe trace's push constants would pass Vulkan's 128 bytes)
 # screen_hidden: R32F, the object-table rows of the camera-hidden instances (one texel of -1: none)
@@ -94,12 +92,11 @@ class ScreenTrace:
         or a test asks for it): float32 [h, w, 4], per pixel the share of `rays` probe-like rays
         served by the screen (r), the mesh SDFs (g), the global SDF (b)."""
         from . import voxel_lighting
-        from .screen_probes import GI_LIBS, VL
+        from .screen_probes import VL
 
         out = compute.texture((self.width, self.height))
         sh = compute.shader("gi_trace_method", samplers=VL + SAMPLERS,
-                            push=PUSH + (('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 't_max')),
-                            libs=GI_LIBS + LIBS, scene=True, surface_cache=True, global_sdf=True)
+                            push=PUSH + (('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 't_max')))
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)

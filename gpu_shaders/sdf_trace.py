@@ -29,8 +29,7 @@ def trace_shader():
         info.push_constant('FLOAT', 't_max')
         info.push_constant('INT', 'max_steps')
         _SHADER["trace"] = compute.create(
-            info, glsl("sdf_lib.glsl") + "\n" + glsl("camera_lib.glsl") + "\n"
-            + glsl("sdf_trace.comp.glsl"))
+            info, glsl("sdf_trace.comp.glsl"))
     return _SHADER["trace"]
 
 

@@ -29,8 +29,6 @@ import numpy as np
 
 from . import compute, hzb
 
-LIBS = ("sampling_lib.glsl", "mip_lib.glsl", "gbuffer_lib.glsl")
-TRACE_LIBS = LIBS + ("screen_trace_lib.glsl",)
 LEFT, STEPS, NONE = -1.0, -2.0, -3.0      # ssgi_trace's miss codes (the hits' w)
 
 
@@ -78,7 +76,7 @@ class SSGI:
         tex["hits"] = compute.texture((w * rays, h))
         sh = compute.shader("ssgi_trace", samplers=("gbuf_position", "gbuf_normal", "hzb"),
                             push=(('MAT4', 'view_proj'), ('VEC4', 'cam_tmax'),
-                                  ('IVEC4', 'counts'), ('FLOAT', 'thickness')), libs=TRACE_LIBS)
+                                  ('IVEC4', 'counts'), ('FLOAT', 'thickness')))
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
         sh.uniform_sampler("hzb", tex["hzb"])
@@ -93,7 +91,7 @@ class SSGI:
         sh = compute.shader("ssgi_resolve", samplers=("gbuf_position", "gbuf_normal", "hits",
                                                       "colour"),
                             push=(('MAT4', 'view_proj'), ('VEC3', 'cam_pos'), ('INT', 'rays'),
-                                  ('INT', 'reuse'), ('FLOAT', 'cone_tan')), libs=LIBS)
+                                  ('INT', 'reuse'), ('FLOAT', 'cone_tan')))
         sh.uniform_sampler("gbuf_position", g["position"])
         sh.uniform_sampler("gbuf_normal", g["normal"])
         sh.uniform_sampler("hits", tex["hits"])

@@ -185,7 +185,7 @@ class SurfaceCache:
         tiles = tiles if tiles is not None else self._all_tiles()
         if not len(tiles[0]):
             return
-        sh = pass_shader("surface_cache_direct", ("surface_cache_pages_lib.glsl", "light_lib.glsl"),
+        sh = pass_shader("surface_cache_direct",
                          ("lights", "sc_pages"), (('INT', 'light_count'), ('INT', 'light_samples')))
         resources.bind(sh)
         self.bind(sh)
@@ -213,14 +213,11 @@ class SurfaceCache:
         pages = self._page_table(tiles)
         t = self.probe_textures
         k = len(idx)
-        probe_libs = ("sampling_lib.glsl", "sh_lib.glsl", "surface_cache_pages_lib.glsl",
-                      "surface_cache_probe_lib.glsl")
         page_samplers = ("sc_pages", "sc_tile_frame")
         sh = pass_shader("surface_cache_probe_trace",
-                         probe_libs + voxel_lighting.LIBS + ("gi_trace_lib.glsl",),
                          page_samplers + voxel_lighting.SAMPLERS,
                          (('INT', 'frame'), ('FLOAT', 't_max')),
-                         images=("probe_out", "probe_pos_out"), gsdf=True)
+                         images=("probe_out", "probe_pos_out"))
         resources.bind(sh)
         self.bind(sh)
         gsdf.bind(sh)
@@ -236,7 +233,7 @@ class SurfaceCache:
         sh.image("probe_pos_out", t["positions"])
         compute.run(sh, k * TILE // GROUP, TILE // GROUP, 1)            # one thread per ray
 
-        sh = pass_shader("surface_cache_probe_sh", probe_libs,
+        sh = pass_shader("surface_cache_probe_sh",
                          ("sc_rays", "sc_probes", "sc_probe_pos") + page_samplers,
                          images=("irradiance_out",))
         resources.bind(sh)
@@ -251,7 +248,7 @@ class SurfaceCache:
         sh.image("irradiance_out", t["irradiance"])
         compute.run(sh, k * TILE_PROBES // GROUP, TILE_PROBES // GROUP, 1)   # one per probe
 
-        sh = pass_shader("surface_cache_indirect", probe_libs,
+        sh = pass_shader("surface_cache_indirect",
                          ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos")
                          + page_samplers, images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),
                                                   ("delta_image", 'RGBA32F', {'READ', 'WRITE'})),
@@ -272,7 +269,7 @@ class SurfaceCache:
 
     def combine(self, resources: SceneResources):
         """surface_cache_combine: final = (direct + indirect) * albedo / pi + emissive."""
-        sh = pass_shader("surface_cache_combine", (), ("sc_direct", "sc_indirect"))
+        sh = pass_shader("surface_cache_combine", ("sc_direct", "sc_indirect"))
         resources.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("texel_card", self.texel_card)
@@ -289,7 +286,7 @@ class SurfaceCache:
 
     def layer(self, resources: SceneResources, name: str):
         """surface_cache_layer: an RGBA32F lighting-atlas texture of one LAYERS view."""
-        sh = pass_shader("surface_cache_layer", (), ("sc_direct", "sc_indirect", "sc_tile_age"),
+        sh = pass_shader("surface_cache_layer", ("sc_direct", "sc_indirect", "sc_tile_age"),
                          (('INT', 'layer_mode'),))
         tw, th = self.pages.grid
         ages = _tex((tw, th), 'R32F', self.pages.ages())     # held until the dispatch
@@ -309,8 +306,7 @@ class SurfaceCache:
              name: str = "final") -> np.ndarray:
         """surface_cache_view: float32 [h, w, 4], the surface cache's `name` layer sampled at every
         G-buffer pixel through the cards (w: card weight, 0 where no card sees the pixel)."""
-        sh = pass_shader("surface_cache_view", ("gbuffer_lib.glsl",),
-                         ("gbuf_position", "gbuf_normal"),
+        sh = pass_shader("surface_cache_view", ("gbuf_position", "gbuf_normal"),
                          (('VEC3', 'cam_pos'),))
         source = self.final if name == "final" else self.layer(resources, name)
         resources.bind(sh)
@@ -338,12 +334,9 @@ class SurfaceCache:
         return compute.read(getattr(self, name))
 
 
-def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False, own_out=True):
-    """compute.shader for a surface-cache pass: the SDF and surface-cache samplers, `texel_card`
-    and the extra 2D `samplers`, an RGBA32F write-only `out_image` (unless own_out is False:
-    `images` declares it) and more `images`, `push` constants ((type, name)), with gsdf the global
-    SDF's; surface_cache_texel_lib.glsl and `libs` before glsl/<name>.comp.glsl."""
+def pass_shader(name: str, samplers=(), push=(), images=(), own_out=True):
+    """compute.shader for a surface-cache pass: `texel_card` and the extra 2D `samplers`, an
+    RGBA32F write-only `out_image` (unless own_out is False: `images` declares it) and more
+    `images`, `push` constants ((type, name)); the libraries' samplers come with its includes."""
     return compute.shader(name, samplers=("texel_card",) + tuple(samplers),
-                          images=(("out_image",) if own_out else ()) + tuple(images), push=push,
-                          libs=("surface_cache_texel_lib.glsl",) + tuple(libs), scene=True,
-                          surface_cache=True, global_sdf=gsdf)
+                          images=(("out_image",) if own_out else ()) + tuple(images), push=push)

@@ -50,9 +50,6 @@ BYTES = {'RGBA16F': 8, 'R32F': 4}
 SAMPLER = "vl_radiance"
 TILES = "vl_tiles"
 SAMPLERS = (SAMPLER, TILES)   # a tracing pass's samplers (gi_trace_lib.glsl)
-LAYOUT = "voxel_lighting_layout_lib.glsl"
-LIBS = (LAYOUT, "voxel_lighting_lib.glsl")   # a tracing pass's libs, before gi_trace_lib.glsl
-_SHADERS = {}
 
 
 def _placeholder():
@@ -144,8 +141,7 @@ class VoxelLighting:
         compute.dispatch(sh, tn, tn * tn)
 
         sh = compute.shader("voxel_lighting_update", samplers=("vl_tiles", "vl_list"),
-                            images=(("out_image", FORMAT),), push=(('INT', 'vl_level'),),
-                            libs=(LAYOUT,), scene=True, surface_cache=True, global_sdf=True)
+                            images=(("out_image", FORMAT),), push=(('INT', 'vl_level'),))
         resources.bind(sh)
         cache.bind(sh)
         gsdf.bind(sh)
@@ -172,8 +168,7 @@ class VoxelLighting:
         g = gbuf["textures"]
         sh = compute.shader("voxel_lighting_view",
                             samplers=("gbuf_position", "gbuf_normal", SAMPLER),
-                            push=(('VEC3', 'cam_pos'),), libs=("gbuffer_lib.glsl",) + LIBS,
-                            global_sdf=True)
+                            push=(('VEC3', 'cam_pos'),))
         gsdf.bind(sh)
         self.bind(sh)
         sh.uniform_sampler("gbuf_position", g["position"])
@@ -200,22 +195,9 @@ class VoxelLighting:
 
 
 def _tiles_shader():
-    """voxel_lighting_tiles, declared here rather than by compute.shader: it appends to the list
-    with an atomic add on an R32I image, and compute.shader declares float images only."""
-    if "tiles" not in _SHADERS:
-        from .global_sdf import GlobalSDF
-        from .resources import SceneResources, glsl
-
-        info = compute.new_info()
-        GlobalSDF.declare(info, SceneResources.declare(info, 0))
-        info.image(0, 'R32F', 'FLOAT_2D', 'out_image', qualifiers={'WRITE'})
-        info.image(1, FORMAT, 'FLOAT_2D', 'vl_faces_out', qualifiers={'WRITE'})
-        info.image(2, 'R32F', 'FLOAT_2D', 'vl_list_out', qualifiers={'WRITE'})
-        info.image(3, 'R32I', 'INT_2D', 'vl_counter', qualifiers={'READ', 'WRITE'})
-        info.push_constant('INT', 'vl_level')
-        info.push_constant('FLOAT', 'vl_reach')
-        info.push_constant('INT', 'vl_capacity')
-        _SHADERS["tiles"] = compute.create(info, "\n".join(
-            glsl(name) for name in ("sdf_lib.glsl", "global_sdf_lib.glsl", LAYOUT,
-                                    "voxel_lighting_tiles.comp.glsl")))
-    return _SHADERS["tiles"]
+    """voxel_lighting_tiles: appends to the list with an atomic add on an R32I image."""
+    return compute.shader("voxel_lighting_tiles",
+                          images=(("out_image", 'R32F'), ("vl_faces_out", FORMAT),
+                                  ("vl_list_out", 'R32F'),
+                                  ("vl_counter", 'R32I', {'READ', 'WRITE'})),
+                          push=(('INT', 'vl_level'), ('FLOAT', 'vl_reach'), ('INT', 'vl_capacity')))

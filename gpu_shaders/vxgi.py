@@ -36,7 +36,6 @@ import numpy as np
 
 from . import compute, voxel_lighting
 
-LIBS = ("sampling_lib.glsl", "gbuffer_lib.glsl", voxel_lighting.LAYOUT, "voxel_lighting_lib.glsl")
 
 
 class VXGI:
@@ -67,8 +66,7 @@ class VXGI:
         out = self.textures["cones"] = compute.texture((self.width, self.height))
         sh = compute.shader("vxgi_cones",
                             samplers=("gbuf_position", "gbuf_normal", voxel_lighting.SAMPLER),
-                            push=(('VEC4', 'cam_tmax'), ('VEC4', 'cone'), ('IVEC4', 'counts')),
-                            libs=LIBS, global_sdf=True, sky=True)
+                            push=(('VEC4', 'cam_tmax'), ('VEC4', 'cone'), ('IVEC4', 'counts')))
         gsdf.bind(sh)
         sky.bind(sh)
         voxels.bind(sh)
