@@ -59,6 +59,36 @@ def _placeholder():
     return compute.texture((1, 1), FORMAT)
 
 
+def declare_radiance(info, slot: int) -> int:
+    """voxel_lighting_lib.glsl's sampler (compute.Pass: its includer's `voxels=`)."""
+    info.sampler(slot, 'FLOAT_2D', SAMPLER)
+    return slot + 1
+
+
+def declare_tiles(info, slot: int) -> int:
+    """voxel_lighting_trace_lib.glsl's sampler: the tiles' object lists."""
+    info.sampler(slot, 'FLOAT_2D', TILES)
+    return slot + 1
+
+
+def bind_radiance(shader, voxel_lighting):
+    """SAMPLER to `voxel_lighting`, or a placeholder when None (returned: hold it until the
+    dispatch; vl_enabled() is false)."""
+    if voxel_lighting is not None:
+        voxel_lighting.bind(shader)
+        return None
+    tex = _placeholder()
+    shader.uniform_sampler(SAMPLER, tex)
+    return tex
+
+
+def bind_tiles(shader, voxel_lighting):
+    """TILES to `voxel_lighting`'s, or a placeholder when None (returned, as bind_radiance)."""
+    tex = voxel_lighting.tiles if voxel_lighting is not None else _placeholder()
+    shader.uniform_sampler(TILES, tex)
+    return None if voxel_lighting is not None else tex
+
+
 def bind(shader, voxel_lighting):
     """Bind SAMPLERS to `voxel_lighting` (or, when None, to a placeholder: returned, keep it
     until the dispatch)."""

@@ -1,12 +1,12 @@
-/* Lumen GI: sampling the global SDF (4 clipmap levels around the camera) and the hybrid trace.
+/* Lumen GI: sampling the global SDF (4 clipmap levels around the camera).
  *
  * Resources (declared by GlobalSDF.declare, bound by GlobalSDF.bind, gpu_shaders/global_sdf.py):
  *   sampler3D gsdf_level0..3   R16F/R32F, N^3, toroidally addressed (see global_sdf_build.comp.glsl)
  *   GlobalSDFParams gsdf  a uniform block: gsdf.origin[k].xyz the level's first world cell
  *                         (integers), .w its voxel size (m); values are clamped to
  *                         min(d, gsdf.band.x * voxel) per level
- * trace_hybrid needs sdf_lib.glsl (the mesh SDFs) included before this file; without it only the
- * sampling functions are defined. All reads are texelFetch; the trilinear
+ * The hybrid trace (mesh SDFs near, global SDF far) is global_sdf_trace_lib.glsl. All reads are
+ * texelFetch; the trilinear
  * filter is done here in float32 (the toroidal wrap rules out the hardware filter).
  */
 

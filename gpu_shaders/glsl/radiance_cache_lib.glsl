@@ -14,7 +14,7 @@
  * texel's nearest hit): else a wall lies between the probe and the ray, and the probe (in a
  * solid, behind a thin wall) is left out. A texel holds its hits' light plus the share of its
  * rays that left the scene: that share of the sky is read in the ray's own direction d. False when no probe is left (the ray traces on).
- * rc_radiance (with gi_trace_lib.glsl included before): a whole ray, short trace + cache.
+ * rc_radiance (radiance_cache_trace_lib.glsl): a whole ray, short trace + cache.
  */
 #ifndef LUMEN_RC_LIB
 #define LUMEN_RC_LIB

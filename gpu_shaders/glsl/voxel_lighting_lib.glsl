@@ -1,11 +1,11 @@
 #include "global_sdf_lib.glsl"
 #include "voxel_lighting_layout_lib.glsl"
-/* Lumen GI: voxel lighting, read at global-SDF hits (needs global_sdf_lib.glsl and
- * voxel_lighting_layout_lib.glsl, which says what a voxel face holds and where; with sdf_lib.glsl
- * included before, also the tiles' object lists for gi_trace).
+/* Lumen GI: voxel lighting, read at global-SDF hits (voxel_lighting_layout_lib.glsl says what a
+ * voxel face holds and where; the tiles' object lists gi_trace searches are
+ * voxel_lighting_trace_lib.glsl).
  *
- * sampler2D vl_radiance, and with sdf_lib.glsl sampler2D vl_tiles (declared by each pass that
- * traces, bound by voxel_lighting.bind). A vl_radiance narrower than 24 N (the 1x1 placeholder
+ * sampler2D vl_radiance (and vl_tiles, voxel_lighting_trace_lib.glsl's), declared and bound by
+ * voxel_lighting.py for the passes that include them. A vl_radiance narrower than 24 N (the 1x1 placeholder
  * bound when there is no voxel lighting) disables both: vl_sample fails everywhere,
  * vl_load_tile too, and gi_trace searches every object as before.
  */
