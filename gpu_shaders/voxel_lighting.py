@@ -49,7 +49,18 @@ FORMAT = 'RGBA16F'
 BYTES = {'RGBA16F': 8, 'R32F': 4}
 SAMPLER = "vl_radiance"
 TILES = "vl_tiles"
-SAMPLERS = (SAMPLER, TILES)   # a tracing pass's samplers (gi_trace_lib.glsl)
+SAMPLERS = (SAMPLER, TILES)   # voxel_lighting_lib.glsl's and voxel_lighting_trace_lib.glsl's
+# voxel_lighting_tiles appends to the list with an atomic add on an R32I image
+TILES_PASS = compute.Pass("voxel_lighting_tiles",
+                          images=(("out_image", 'R32F'), ("vl_faces_out", FORMAT),
+                                  ("vl_list_out", 'R32F'),
+                                  ("vl_counter", 'R32I', {'READ', 'WRITE'})),
+                          push=(('INT', 'vl_level'), ('FLOAT', 'vl_reach'),
+                                ('INT', 'vl_capacity')))
+UPDATE = compute.Pass("voxel_lighting_update", samplers=("vl_tiles", "vl_list"),
+                      images=(("out_image", FORMAT),), push=(('INT', 'vl_level'),))
+VIEW = compute.Pass("voxel_lighting_view", samplers=("gbuf_position", "gbuf_normal"),
+                    push=(('VEC3', 'cam_pos'),))
 
 
 def _placeholder():
@@ -157,29 +168,15 @@ class VoxelLighting:
         v = gsdf.voxels[level]
         self.list.clear(format='FLOAT', value=(-1.0,))
         self.counter.clear(format='INT', value=(0,))
-        sh = _tiles_shader()
-        resources.bind(sh)
-        gsdf.bind(sh)
-        sh.uniform_int("vl_level", level)
         # a face ray reaches one voxel past its voxel, plus the thin-wall hit shell
-        sh.uniform_float("vl_reach", float(1.5 * v + 2.0 * gsdf.thin_margin()))
-        sh.uniform_int("vl_capacity", self.capacity)
-        sh.image("out_image", self.tiles)
-        sh.image("vl_faces_out", self.texture)
-        sh.image("vl_list_out", self.list)
-        sh.image("vl_counter", self.counter)
-        compute.dispatch(sh, tn, tn * tn)
-
-        sh = compute.shader("voxel_lighting_update", samplers=("vl_tiles", "vl_list"),
-                            images=(("out_image", FORMAT),), push=(('INT', 'vl_level'),))
-        resources.bind(sh)
-        cache.bind(sh)
-        gsdf.bind(sh)
-        sh.uniform_sampler("vl_tiles", self.tiles)
-        sh.uniform_sampler("vl_list", self.list)
-        sh.uniform_int("vl_level", level)
-        sh.image("out_image", self.texture)
-        compute.dispatch(sh, LIST_WIDTH, self.capacity // LIST_WIDTH)
+        TILES_PASS.run((tn, tn * tn), scene=resources, gsdf=gsdf, vl_level=level,
+                       vl_reach=float(1.5 * v + 2.0 * gsdf.thin_margin()),
+                       vl_capacity=self.capacity, out_image=self.tiles,
+                       vl_faces_out=self.texture, vl_list_out=self.list,
+                       vl_counter=self.counter)
+        UPDATE.run((LIST_WIDTH, self.capacity // LIST_WIDTH), scene=resources, cache=cache,
+                   gsdf=gsdf, vl_tiles=self.tiles, vl_list=self.list, vl_level=level,
+                   out_image=self.texture)
 
     def read_count(self) -> int:
         """Voxels the last level update listed (== capacity: the list was full, voxels may have
@@ -196,17 +193,9 @@ class VoxelLighting:
         per pixel what a global-SDF hit there reads (w = level + 1; magenta, w = 0: no voxel face;
         background w = -1)."""
         g = gbuf["textures"]
-        sh = compute.shader("voxel_lighting_view",
-                            samplers=("gbuf_position", "gbuf_normal", SAMPLER),
-                            push=(('VEC3', 'cam_pos'),))
-        gsdf.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_float("cam_pos", compute.vec(cam_pos))
         out = compute.texture((width, height))
-        sh.image("out_image", out)
-        compute.dispatch(sh, width, height)
+        VIEW.run((width, height), gsdf=gsdf, voxels=self, gbuf_position=g["position"],
+                 gbuf_normal=g["normal"], cam_pos=compute.vec(cam_pos), out_image=out)
         return compute.read(out)
 
     def read(self):
@@ -222,12 +211,3 @@ class VoxelLighting:
         return {"voxel_lighting": self.texture.width * self.texture.height * BYTES[FORMAT],
                 "voxel_lighting_tiles": (self.tiles.width * self.tiles.height
                                          + self.list.width * self.list.height + 1) * 4}
-
-
-def _tiles_shader():
-    """voxel_lighting_tiles: appends to the list with an atomic add on an R32I image."""
-    return compute.shader("voxel_lighting_tiles",
-                          images=(("out_image", 'R32F'), ("vl_faces_out", FORMAT),
-                                  ("vl_list_out", 'R32F'),
-                                  ("vl_counter", 'R32I', {'READ', 'WRITE'})),
-                          push=(('INT', 'vl_level'), ('FLOAT', 'vl_reach'), ('INT', 'vl_capacity')))
