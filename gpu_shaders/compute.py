@@ -287,51 +287,6 @@ def _set_push(sh, kind, name, v, pass_name):
         sh.uniform_float(name, vals[0] if len(vals) == 1 else vals)
 
 
-def owners(files) -> list:
-    """The declare functions of the libraries among `files` (glsl_include.files), in slot order:
-    a pass that includes sdf_lib.glsl gets SceneResources' samplers, and so on."""
-    from .global_sdf import GlobalSDF
-    from .sky_light import SkyLight
-    from .surface_cache import SurfaceCache
-    table = (("sdf_lib.glsl", SceneResources.declare),
-             ("surface_cache_lib.glsl", SurfaceCache.declare),
-             ("global_sdf_lib.glsl", GlobalSDF.declare), ("sky_lib.glsl", SkyLight.declare))
-    return [declare for lib, declare in table if lib in files]
-
-
-def declare_libs(info, name: str, slot: int = 0):
-    """Declare the samplers of the libraries glsl/<name> includes on info; returns (source of
-    name with its includes resolved, next free sampler slot)."""
-    for declare in owners(glsl_include.files(name)):
-        slot = declare(info, slot)
-    return glsl_include.source(name), slot
-
-
-def shader(name: str, *, samplers=(), images=("out_image",), push=()):
-    """The compute shader of glsl/<name>.comp.glsl and the libraries it #includes (cached by
-    name); the samplers of sdf_lib, surface_cache_lib, global_sdf_lib and sky_lib come with
-    them. images: names or (name, format) or (name, format, qualifiers such as {'READ',
-    'WRITE'}: write-only unless given); push: (type, name)."""
-    if name in _SHADERS:
-        return _SHADERS[name]
-    info = new_info()
-    src, slot = declare_libs(info, name + ".comp.glsl")
-    for s in samplers:
-        info.sampler(slot, 'FLOAT_2D', s)
-        slot += 1
-    for k, im in enumerate(images):
-        im = (im,) if isinstance(im, str) else tuple(im)
-        im_name = im[0]
-        fmt = im[1] if len(im) > 1 else 'RGBA32F'
-        access = im[2] if len(im) > 2 else {'WRITE'}
-        info.image(k, fmt, 'INT_2D' if fmt.endswith('I') else 'FLOAT_2D', im_name,
-                   qualifiers=set(access))
-    for kind, pname in push:
-        info.push_constant(kind, pname)
-    _SHADERS[name] = create(info, src)
-    return _SHADERS[name]
-
-
 def texture(size, fmt='RGBA32F'):
     """A new 2D texture cleared to zero. A new GPUTexture's contents are undefined (OpenGL and
     Vulkan leave them so), and the surface cache's passes keep textures whose texels are written
