@@ -185,7 +185,7 @@ class VoxelLighting:
 
     # --- reading from other passes ------------------------------------------------------------
     def bind(self, shader):
-        """Set voxel_lighting_lib.glsl's sampler (a pass lists SAMPLER among its samplers)."""
+        """Set voxel_lighting_lib.glsl's sampler (a compute.Pass including it: voxels=)."""
         shader.uniform_sampler(SAMPLER, self.texture)
 
     def view(self, gsdf, gbuf: dict, cam_pos, width: int, height: int):
