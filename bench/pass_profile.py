@@ -29,13 +29,12 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 
 
 def shader_names() -> dict:
-    """{id(shader): name} over every module's shader cache (compute passes cache by name)."""
+    """{id(shader): name} over every module's shader cache (compute.Pass caches by pass name)."""
     import importlib
 
     base = "lumen_gi.gpu_shaders"          # tools/demo.load_addon's package name
     names = {}
-    for mod_name in ("compute", "direct_light", "global_sdf", "resources", "sdf_trace",
-                     "voxel_lighting", "gbuffer"):
+    for mod_name in ("compute", "global_sdf", "resources", "gbuffer"):
         mod = importlib.import_module(f"{base}.{mod_name}")
         for cache in (getattr(mod, "_SHADERS", None), getattr(mod, "_SHADER", None)):
             for key, sh in (cache or {}).items():

@@ -7,8 +7,8 @@ import `gpu_shaders.packing` without Blender.
 """
 
 
-_SHADER_CACHES = (("compute", "_SHADERS"), ("direct_light", "_SHADER"), ("gbuffer", "_SHADER"),
-                  ("global_sdf", "_SHADERS"), ("resources", "_SHADERS"), ("sdf_trace", "_SHADER"))
+_SHADER_CACHES = (("compute", "_SHADERS"), ("gbuffer", "_SHADER"),
+                  ("global_sdf", "_SHADERS"), ("resources", "_SHADERS"))
 
 
 def free_shaders():

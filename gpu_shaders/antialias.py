@@ -106,20 +106,13 @@ def resolve_indirect(gbuf: dict, base: dict, e_base, jitter, foot, cam_pos, widt
     from . import compute
 
     out = compute.texture((width, height))
-    sh = compute.shader("aa_resolve", samplers=("gbuf_position", "gbuf_normal", "base_position",
-                                                "base_normal", "e_base"),
-                        push=(('VEC3', 'cam_pos'), ('VEC2', 'jitter'), ('VEC2', 'footprint')),
-                        libs=("gbuffer_lib.glsl",))
-    sh.uniform_sampler("gbuf_position", gbuf["textures"]["position"])
-    sh.uniform_sampler("gbuf_normal", gbuf["textures"]["normal"])
-    sh.uniform_sampler("base_position", base["textures"]["position"])
-    sh.uniform_sampler("base_normal", base["textures"]["normal"])
-    sh.uniform_sampler("e_base", e_base)
-    sh.uniform_float("cam_pos", compute.vec(cam_pos))
-    sh.uniform_float("jitter", compute.vec(jitter, 2))
-    sh.uniform_float("footprint", compute.vec(foot, 2))
-    sh.image("out_image", out)
-    compute.dispatch(sh, width, height)
+    resolve = compute.Pass("aa_resolve", samplers=("gbuf_position", "gbuf_normal", "base_position",
+                                                   "base_normal", "e_base"),
+                           push=(('VEC3', 'cam_pos'), ('VEC2', 'jitter'), ('VEC2', 'footprint')))
+    resolve.run((width, height), gbuf_position=gbuf["textures"]["position"],
+                gbuf_normal=gbuf["textures"]["normal"], base_position=base["textures"]["position"],
+                base_normal=base["textures"]["normal"], e_base=e_base, cam_pos=compute.vec(cam_pos),
+                jitter=compute.vec(jitter, 2), footprint=compute.vec(foot, 2), out_image=out)
     return out
 
 

@@ -1,19 +1,32 @@
-"""Small helpers every compute pass uses: build a shader once from a declaration, dispatch over
-an image, allocate and read RGBA32F textures. Needs a GPU context.
+"""Compute passes: one declaration per pass (`Pass`), bound from that declaration and dispatched;
+zero-cleared textures and read-back. Needs a GPU context.
 
-A pass is declared by what it reads: `scene` (sdf_lib.glsl's three samplers; sdf_ray_lib.glsl
-comes with it), `surface_cache`
-(surface_cache_lib.glsl's), `global_sdf` (global_sdf_lib.glsl's), `sky` (sky_lib.glsl's), extra 2D float samplers, images
-(binding order = listed order, RGBA32F unless given; integer formats such as R32I
-are iimage2D, for atomics) and push constants; its source is the
-libraries it needs followed by glsl/<name>.comp.glsl.
+A pass is glsl/<name>.comp.glsl, whose `#include "x.glsl"` lines name the libraries it uses
+(glsl_include.py resolves them: recursively, each once, dependencies first), and a `Pass`:
+
+    PLACE = compute.Pass("screen_probe_place", samplers=("gbuf_position", "gbuf_normal"),
+                         images=("out_image", "probe_normal_out"),
+                         push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile')))
+    PLACE.run((w, h), gbuf_position=..., gbuf_normal=..., out_image=..., probe_normal_out=...,
+              cam_pos=..., probe_tile=16)
+
+Every declared sampler (2D float), image (RGBA32F write-only unless given; integer formats such
+as R32I are iimage2D, for atomics) and push constant is bound from the keyword of its name. A
+library's samplers come with its include and are bound by their owner, given by keyword:
+sdf_lib.glsl `scene=` (SceneResources), surface_cache_lib.glsl `cache=` (SurfaceCache),
+global_sdf_lib.glsl `gsdf=` (GlobalSDF), sky_lib.glsl `sky=` (SkyLight),
+voxel_lighting_lib.glsl and voxel_lighting_trace_lib.glsl `voxels=` (VoxelLighting or None).
+The screen trace and the radiance cache hand their inputs over as dicts to splat into `run`
+(ScreenTrace.inputs, radiance_cache.lookup_inputs, ...). A missing or unknown input raises.
+Push constants over Vulkan's 128 bytes go into a uniform block (the GLSL is unchanged).
 """
 from __future__ import annotations
 
 import gpu
 import numpy as np
 
-from .resources import SceneResources, glsl, read_texture
+from . import glsl_include
+from .resources import SceneResources, read_texture
 
 GROUP = 8
 _SHADERS = {}
@@ -50,48 +63,228 @@ def run(sh, groups_x: int, groups_y: int = 1, groups_z: int = 1):
     gpu.compute.dispatch(sh, int(groups_x), int(groups_y), int(groups_z))
 
 
-def shader(name: str, *, samplers=(), images=("out_image",), push=(), libs=(), scene=False,
-           surface_cache=False, global_sdf=False, sky=False):
-    """The compute shader of glsl/<name>.comp.glsl (cached by name). images: names or
-    (name, format) or (name, format, qualifiers such as {'READ', 'WRITE'}: write-only unless
-    given); push: (type, name). sky: sky_lib.glsl and its sampler (implied by gi_trace_lib.glsl,
-    whose rays read the sky where they leave the scene)."""
-    if name in _SHADERS:
-        return _SHADERS[name]
-    info = new_info()
-    slot = 0
-    src = []
-    if scene:
-        slot = SceneResources.declare(info, slot)
-        src += [glsl("sdf_lib.glsl"), glsl("sdf_ray_lib.glsl")]
-    if surface_cache:
-        from .surface_cache import SurfaceCache
-        slot = SurfaceCache.declare(info, slot)
-    if global_sdf:
-        from .global_sdf import GlobalSDF
-        slot = GlobalSDF.declare(info, slot)
-        src.append(glsl("global_sdf_lib.glsl"))
-    if surface_cache:
-        src.append(glsl("surface_cache_lib.glsl"))
-    if sky or "gi_trace_lib.glsl" in libs:
-        from .sky_light import SkyLight
-        slot = SkyLight.declare(info, slot)
-        src.append(glsl("sky_lib.glsl"))
-    for s in samplers:
-        info.sampler(slot, 'FLOAT_2D', s)
-        slot += 1
-    for k, im in enumerate(images):
-        im = (im,) if isinstance(im, str) else tuple(im)
-        im_name = im[0]
-        fmt = im[1] if len(im) > 1 else 'RGBA32F'
-        access = im[2] if len(im) > 2 else {'WRITE'}
-        info.image(k, fmt, 'INT_2D' if fmt.endswith('I') else 'FLOAT_2D', im_name,
-                   qualifiers=set(access))
-    for kind, pname in push:
-        info.push_constant(kind, pname)
-    src += [glsl(lib) for lib in libs] + [glsl(name + ".comp.glsl")]
-    _SHADERS[name] = create(info, "\n".join(src))
-    return _SHADERS[name]
+# Bytes per push constant (std430; a VEC3 takes 16) and the limit Vulkan guarantees.
+PUSH_BYTES = {'INT': 4, 'FLOAT': 4, 'BOOL': 4, 'VEC2': 8, 'IVEC2': 8, 'VEC3': 16, 'IVEC3': 16,
+              'VEC4': 16, 'IVEC4': 16, 'MAT3': 48, 'MAT4': 64}
+PUSH_LIMIT = 128
+BLOCK_SLOT = 1          # the pass block's binding (GlobalSDFParams has 0)
+_VEC = {'FLOAT': 1, 'VEC2': 2, 'VEC3': 3, 'VEC4': 4, 'INT': 1, 'IVEC2': 2, 'IVEC3': 3,
+        'IVEC4': 4, 'BOOL': 1}
+
+
+def push_bytes(push) -> int:
+    """Push-constant bytes of a declaration, the bind guard included."""
+    return PUSH_BYTES['INT'] + sum(PUSH_BYTES[kind] for kind, _ in push)
+
+
+def _providers():
+    """(library, keyword, declare(info, slot) -> slot, bind(shader, value) -> held): the inputs a
+    pass gets from what it #includes, bound by their owner (SceneResources.bind etc.)."""
+    from . import voxel_lighting
+    from .global_sdf import GlobalSDF
+    from .sky_light import SkyLight
+    from .surface_cache import SurfaceCache
+
+    def own(sh, v):
+        v.bind(sh)
+
+    return (("sdf_lib.glsl", "scene", SceneResources.declare, own),
+            ("surface_cache_lib.glsl", "cache", SurfaceCache.declare, own),
+            ("global_sdf_lib.glsl", "gsdf", GlobalSDF.declare, own),
+            ("sky_lib.glsl", "sky", SkyLight.declare, own),
+            ("voxel_lighting_lib.glsl", "voxels", voxel_lighting.declare_radiance,
+             voxel_lighting.bind_radiance),
+            ("voxel_lighting_trace_lib.glsl", "voxels", voxel_lighting.declare_tiles,
+             voxel_lighting.bind_tiles))
+
+
+class Pass:
+    """One compute pass, declared once and bound from that declaration.
+
+    Pass(name, samplers=, images=, push=) declares glsl/<name>.comp.glsl (and what it
+    #includes): 2D float samplers, images (names or (name, format[, qualifiers]), write-only
+    RGBA32F unless given) and push constants ((type, name)). `run(size, **inputs)` binds every
+    declared input from the keyword of its name (textures, numbers, vectors, matrices) and the
+    libraries' owners from theirs (scene= SceneResources for sdf_lib.glsl, cache= SurfaceCache,
+    gsdf= GlobalSDF, sky= SkyLight, voxels= VoxelLighting or None), then dispatches over size
+    (pixels; `run_groups`: work groups). A missing or unknown input raises ValueError naming
+    the pass and the input, so a forgotten bind can no longer go unnoticed.
+    Push constants over Vulkan's 128 bytes go into a uniform block instead (one 16-byte slot per
+    name, a #define per name: the GLSL body is the same)."""
+
+    def __init__(self, name: str, *, samplers=(), images=("out_image",), push=(),
+                 group=(GROUP, GROUP, 1), source=None):
+        self.name, self.group, self.text = name, tuple(group), source   # source: tests
+        self.samplers = tuple(samplers)
+        self.images = tuple((im,) if isinstance(im, str) else tuple(im) for im in images)
+        self.push = tuple(push)
+        self.block = push_bytes(self.push) > PUSH_LIMIT
+        self._ubo = None
+        self._files = None
+        self._unused = None          # push constants the compiler dropped
+
+    @property
+    def shader(self):
+        """The compiled shader (built on first use, cached in _SHADERS by name)."""
+        if self.name not in _SHADERS:
+            _SHADERS[self.name] = self._build()
+        return _SHADERS[self.name]
+
+    def files(self) -> list:
+        """The GLSL files of the pass (glsl_include.files), its own last."""
+        if self._files is None:
+            main = self.name + ".comp.glsl"
+            self._files = (glsl_include.files(glsl_include.includes(self.text))
+                           if self.text is not None else glsl_include.files(main))
+        return self._files
+
+    def providers(self) -> list:
+        """(keyword, declare, bind) of the library owners the pass's includes need."""
+        files = self.files()
+        return [(key, declare, bind) for lib, key, declare, bind in _providers() if lib in files]
+
+    def _build(self):
+        info = new_info(self.group)
+        files = self.files()
+        if self.text is not None:   # a test's GLSL: its #include lines name files in glsl/
+            libs = glsl_include.includes(self.text)
+            text = (glsl_include.source(libs) if libs else "") + "\n" \
+                + glsl_include.INCLUDE.sub("", self.text)
+        else:
+            text = glsl_include.source(files[-1])
+        slot = 0
+        for _, declare, _ in self.providers():
+            slot = declare(info, slot)
+        for s in self.samplers:
+            info.sampler(slot, 'FLOAT_2D', s)
+            slot += 1
+        for k, im in enumerate(self.images):
+            fmt = im[1] if len(im) > 1 else 'RGBA32F'
+            info.image(k, fmt, 'INT_2D' if fmt.endswith('I') else 'FLOAT_2D', im[0],
+                       qualifiers=set(im[2] if len(im) > 2 else {'WRITE'}))
+        prefix = ""
+        if self.block:
+            from .global_sdf import PARAMS_TYPEDEF
+            members = "".join(f"  {_slot_type(kind)} p_{n};\n" for kind, n in self.push)
+            # typedef_source replaces: keep GlobalSDFParams when the pass reads the global SDF
+            info.typedef_source((PARAMS_TYPEDEF if "global_sdf_lib.glsl" in files else "")
+                                + f"struct PassParams {{\n{members}}};\n")
+            info.uniform_buf(BLOCK_SLOT, "PassParams", "pass_params")
+            prefix = "".join(f"#define {n} pass_params.p_{n}{_swizzle(kind)}\n"
+                             for kind, n in self.push)
+        else:
+            for kind, n in self.push:
+                info.push_constant(kind, n)
+        return create(info, prefix + text)
+
+    def inputs(self) -> set:
+        """Every keyword `run` takes."""
+        return ({s for s in self.samplers} | {im[0] for im in self.images}
+                | {n for _, n in self.push} | {key for key, _, _ in self.providers()})
+
+    def bind(self, **inputs) -> list:
+        """Bind every declared input; returns what must be held until the dispatch."""
+        sh = self.shader
+        expected = self.inputs()
+        for k in sorted(expected - set(inputs)):
+            raise ValueError(f"pass {self.name}: missing input {k!r}")
+        for k in sorted(set(inputs) - expected):
+            raise ValueError(f"pass {self.name}: unknown input {k!r}")
+        held = [bind(sh, inputs[key]) for key, _, bind in self.providers()]
+        for s in self.samplers:
+            sh.uniform_sampler(s, inputs[s])
+        for im in self.images:
+            sh.image(im[0], inputs[im[0]])
+        if self.block:
+            held.append(self._bind_block(sh, inputs))
+        else:
+            if self._unused is None:
+                self._unused = {n for _, n in self.push if _compiled_out(sh, n)}
+            for kind, n in self.push:
+                if n in self._unused:
+                    if not kind.startswith('MAT'):
+                        _values(kind, n, inputs[n], self.name)     # still checked
+                else:
+                    _set_push(sh, kind, n, inputs[n], self.name)
+        return held
+
+    def _bind_block(self, sh, inputs):
+        data = np.zeros(4 * sum(_slots(kind) for kind, _ in self.push), np.float32)
+        ints = data.view(np.int32)
+        at = 0
+        for kind, n in self.push:
+            v = inputs[n]
+            if kind.startswith('MAT'):
+                m = np.asarray(v, np.float32)              # rows; GLSL reads columns
+                size = int(kind[3])
+                cols = np.zeros((size, 4), np.float32)
+                cols[:, :size] = m.reshape(size, size).T
+                data[at:at + 4 * size] = cols.reshape(-1)
+            else:
+                vals = _values(kind, n, v, self.name)
+                (ints if kind.startswith(('I', 'B')) else data)[at:at + len(vals)] = vals
+            at += 4 * _slots(kind)
+        import gpu
+        self._ubo = gpu.types.GPUUniformBuf(data)          # held until the next run
+        sh.uniform_block("pass_params", self._ubo)
+        return self._ubo
+
+    def run(self, size, **inputs):
+        """Bind `inputs` and dispatch over size = (width, height) pixels (or width)."""
+        w, h = (size, 1) if np.isscalar(size) else size
+        self.run_groups((-(-int(w) // self.group[0]), -(-int(h) // self.group[1]), 1), **inputs)
+
+    def run_groups(self, groups, **inputs):
+        """Bind `inputs` and dispatch `groups` work groups ((x, y[, z]) or x)."""
+        held = self.bind(**inputs)  # noqa: F841 (held until the dispatch)
+        g = (groups,) if np.isscalar(groups) else tuple(groups)
+        run(self.shader, *g)
+
+
+def _slots(kind):
+    return int(kind[3]) if kind.startswith('MAT') else 1
+
+
+def _slot_type(kind):
+    if kind.startswith('MAT'):
+        return kind.lower()
+    return 'ivec4' if kind.startswith(('I', 'B')) else 'vec4'
+
+
+def _swizzle(kind):
+    return "" if kind.startswith('MAT') else "." + "xyzw"[:_VEC[kind]]
+
+
+def _values(kind, name, v, pass_name):
+    n = _VEC[kind]
+    flat = np.asarray(v, np.float64).reshape(-1)
+    if flat.size != n:
+        raise ValueError(f"pass {pass_name}: {name} is {kind}, got {flat.size} values")
+    if kind.startswith(('I', 'B')):
+        return [int(c) for c in flat]
+    return [float(c) for c in flat]
+
+
+def _compiled_out(sh, name) -> bool:
+    """Whether the compiler dropped push constant `name` (declared for a library function the
+    pass never calls: setting it would raise)."""
+    try:
+        return sh.uniform_from_name(name) < 0
+    except ValueError:
+        return True
+
+
+def _set_push(sh, kind, name, v, pass_name):
+    vals = _values(kind, name, v, pass_name) if not kind.startswith('MAT') else None
+    if kind.startswith('MAT'):
+        import mathutils
+        sh.uniform_float(name, v if isinstance(v, mathutils.Matrix)
+                         else mathutils.Matrix(np.asarray(v, np.float64).tolist()))
+        return
+    if kind.startswith(('I', 'B')):
+        sh.uniform_int(name, vals[0] if len(vals) == 1 else vals)
+    else:
+        sh.uniform_float(name, vals[0] if len(vals) == 1 else vals)
 
 
 def texture(size, fmt='RGBA32F'):

@@ -12,40 +12,25 @@ from __future__ import annotations
 import time
 
 import gpu
-import mathutils
 import numpy as np
 
 from . import compute
 from .gbuffer import ATTACHMENTS
-from .resources import SceneResources, float_buffer, glsl
+from .resources import SceneResources, float_buffer
 from .sky_light import SkyLight
 
 GROUP = 8
 SKY_CONES = 8
 LIGHT_SAMPLES = 8          # points per light with a radius (light_lib.glsl: soft shadows)
-_SHADER = {}
-
-
-def direct_shader():
-    if "direct" not in _SHADER:
-        info = compute.new_info((GROUP, GROUP, 1))
-        slot = SceneResources.declare(info, 0)
-        for name in ATTACHMENTS:
-            info.sampler(slot, 'FLOAT_2D', "gbuf_" + name)
-            slot += 1
-        info.sampler(slot, 'FLOAT_2D', "lights")
-        slot = SkyLight.declare(info, slot + 1)
-        info.image(0, 'RGBA32F', 'FLOAT_2D', 'direct_out', qualifiers={'WRITE'})
-        info.image(1, 'RGBA32F', 'FLOAT_2D', 'combined_out', qualifiers={'WRITE'})
-        info.push_constant('VEC3', 'cam_pos')
-        info.push_constant('INT', 'light_count')
-        info.push_constant('INT', 'sample_plan')   # samples + 256 first + 65536 take (128 B)
-        info.push_constant('INT', 'sky_cones')
-        info.push_constant('MAT4', 'inv_view_proj')
-        _SHADER["direct"] = compute.create(info, "\n".join(glsl(name) for name in (
-            "sdf_lib.glsl", "light_lib.glsl", "sky_lib.glsl", "camera_lib.glsl",
-            "direct_light.comp.glsl")))
-    return _SHADER["direct"]
+DIRECT = compute.Pass("direct_light", samplers=tuple("gbuf_" + n for n in ATTACHMENTS) + ("lights",),
+                      images=("direct_out", "combined_out"),
+                      push=(('VEC3', 'cam_pos'), ('INT', 'light_count'),
+                            ('INT', 'sample_plan'),   # samples + 256 first + 65536 take
+                            ('INT', 'sky_cones'), ('MAT4', 'inv_view_proj')))
+ACCUMULATE = compute.Pass("direct_accumulate", samplers=("new_direct", "new_combined"),
+                          images=(("direct_mean", 'RGBA32F', {'READ', 'WRITE'}),
+                                  ("combined_mean", 'RGBA32F', {'READ', 'WRITE'})),
+                          push=(('FLOAT', 'blend'),))
 
 
 def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLight, cam_pos,
@@ -57,7 +42,7 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLig
     sky_cones = 0 leaves the sky light out (the GI passes bring it). part = (first, take): only
     those of each light's samples and of the sky cones (None: all; see Progressive)."""
     t0 = time.perf_counter()
-    shader = direct_shader()
+    DIRECT.shader                        # compiled on first use
     t1 = time.perf_counter()
     rows = np.asarray(lights, np.float32).reshape(-1, 16)
     count = len(rows)
@@ -67,21 +52,12 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLig
         (4, len(rows)), format='RGBA32F', data=float_buffer(rows))
     direct = gpu.types.GPUTexture((width, height), format='RGBA32F')
     combined = gpu.types.GPUTexture((width, height), format='RGBA32F')
-    resources.bind(shader)
-    for name in ATTACHMENTS:
-        shader.uniform_sampler("gbuf_" + name, gbuf["textures"][name])
-    shader.uniform_sampler("lights", light_tex)
-    shader.image("direct_out", direct)
-    shader.image("combined_out", combined)
-    sky.bind(shader)
-    shader.uniform_float("inv_view_proj",
-                         mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
-    shader.uniform_float("cam_pos", [float(c) for c in np.asarray(cam_pos, np.float64)[:3]])
-    shader.uniform_int("light_count", count)
-    shader.uniform_int("sky_cones", int(sky_cones))
     first, take = part if part is not None else (0, max(light_samples, sky_cones, 1))
-    shader.uniform_int("sample_plan", int(light_samples) + 256 * int(first) + 65536 * int(take))
-    compute.run(shader, -(-width // GROUP), -(-height // GROUP), 1)
+    DIRECT.run((width, height), scene=resources, sky=sky,
+               **{"gbuf_" + n: gbuf["textures"][n] for n in ATTACHMENTS}, lights=light_tex,
+               direct_out=direct, combined_out=combined, inv_view_proj=inv_view_proj,
+               cam_pos=compute.vec(cam_pos), light_count=count, sky_cones=int(sky_cones),
+               sample_plan=int(light_samples) + 256 * int(first) + 65536 * int(take))
     out = {"textures": {"direct": direct, "combined": combined}}
     out["compile_seconds"] = t1 - t0
     out["shade_seconds"] = time.perf_counter() - t1
@@ -132,16 +108,9 @@ class Progressive:
         if self.done == 0:
             self.direct, self.combined = new["direct"], new["combined"]
         else:
-            sh = compute.shader("direct_accumulate", samplers=("new_direct", "new_combined"),
-                                images=(("direct_mean", 'RGBA32F', {'READ', 'WRITE'}),
-                                        ("combined_mean", 'RGBA32F', {'READ', 'WRITE'})),
-                                push=(('FLOAT', 'blend'),))
-            sh.uniform_sampler("new_direct", new["direct"])
-            sh.uniform_sampler("new_combined", new["combined"])
-            sh.image("direct_mean", self.direct)
-            sh.image("combined_mean", self.combined)
-            sh.uniform_float("blend", 1.0 / (self.done + 1))
-            compute.dispatch(sh, width, height)
+            ACCUMULATE.run((width, height), new_direct=new["direct"],
+                           new_combined=new["combined"], direct_mean=self.direct,
+                           combined_mean=self.combined, blend=1.0 / (self.done + 1))
         self.done += 1
         out["textures"] = {"direct": self.direct, "combined": self.combined}
         out["shade_seconds"] = time.perf_counter() - t0 - out["compile_seconds"]

@@ -49,7 +49,7 @@ def _build_shader(fmt: str):
         imod = ("ivec3 gsdf_imod(ivec3 a, int n)\n{\n"
                 "  return a - n * ivec3(floor(vec3(a) / float(n)));\n}\n")
         _SHADERS[key] = compute.create(
-            info, glsl("sdf_lib.glsl") + "\n" + imod + glsl("global_sdf_build.comp.glsl"))
+            info, imod + glsl("global_sdf_build.comp.glsl"))
     return _SHADERS[key]
 
 
@@ -224,8 +224,7 @@ def hybrid_trace_shader():
         info.push_constant('FLOAT', 't_max')
         info.push_constant('INT', 'max_steps')
         _SHADERS["trace"] = compute.create(
-            info, glsl("sdf_lib.glsl") + "\n" + glsl("global_sdf_lib.glsl") + "\n"
-            + glsl("camera_lib.glsl") + "\n" + TRACE_MAIN)
+            info, glsl(("global_sdf_trace_lib.glsl", "camera_lib.glsl")) + "\n" + TRACE_MAIN)
     return _SHADERS["trace"]
 
 

@@ -11,13 +11,16 @@ something (descend). The background stores 1.0 (the far plane). Needs a GPU cont
 """
 from __future__ import annotations
 
-import mathutils
 import numpy as np
 
 from . import compute
 
-LIBS = ("mip_lib.glsl",)
-
+MIP = (('INT', 'level'), ('IVEC2', 'base'))
+DEPTH = compute.Pass("hzb_depth", samplers=("gbuf_position",), images=(("hzb", 'R32F'),),
+                     push=(('MAT4', 'view_proj'),))
+REDUCE = compute.Pass("hzb_reduce", images=(("hzb", 'R32F', {'READ', 'WRITE'}),), push=MIP)
+COLOUR_MIP = compute.Pass("colour_mip", samplers=("source", "gbuf_position"),
+                          images=(("colour", 'RGBA32F', {'READ', 'WRITE'}),), push=MIP)
 
 def mip_layout(width: int, height: int):
     """([(x, y, w, h) per level], (atlas width, atlas height)): glsl/mip_lib.glsl's layout."""
@@ -38,13 +41,11 @@ def levels_of(atlas: np.ndarray, width: int, height: int) -> list:
     return [atlas[y:y + h, x:x + w] for x, y, w, h in rects]
 
 
-def _reduce(sh, image_name: str, atlas, width: int, height: int, first_level: int):
+def _reduce(mip: compute.Pass, width: int, height: int, first_level: int, **inputs):
+    """Each level from first_level on, from the one before it (inputs: the atlas and samplers)."""
     rects, _ = mip_layout(width, height)
     for level in range(first_level, len(rects)):
-        sh.uniform_int("level", level)
-        sh.uniform_int("base", [int(width), int(height)])
-        sh.image(image_name, atlas)
-        compute.dispatch(sh, rects[level][2], rects[level][3])
+        mip.run(rects[level][2:4], level=level, base=(int(width), int(height)), **inputs)
 
 
 def depth_pyramid(gbuf: dict, view_proj, width: int, height: int):
@@ -52,15 +53,9 @@ def depth_pyramid(gbuf: dict, view_proj, width: int, height: int):
     its children."""
     _, size = mip_layout(width, height)
     atlas = compute.texture(size, 'R32F')
-    sh = compute.shader("hzb_depth", samplers=("gbuf_position",),
-                        images=(("hzb", 'R32F'),), push=(('MAT4', 'view_proj'),))
-    sh.uniform_sampler("gbuf_position", gbuf["textures"]["position"])
-    sh.uniform_float("view_proj", mathutils.Matrix(np.asarray(view_proj, np.float64).tolist()))
-    sh.image("hzb", atlas)
-    compute.dispatch(sh, width, height)
-    sh = compute.shader("hzb_reduce", images=(("hzb", 'R32F', {'READ', 'WRITE'}),),
-                        push=(('INT', 'level'), ('IVEC2', 'base')), libs=LIBS)
-    _reduce(sh, "hzb", atlas, width, height, 1)
+    DEPTH.run((width, height), gbuf_position=gbuf["textures"]["position"], view_proj=view_proj,
+              hzb=atlas)
+    _reduce(REDUCE, width, height, 1, hzb=atlas)
     return atlas
 
 
@@ -70,10 +65,6 @@ def colour_pyramid(source, gbuf: dict, width: int, height: int):
     children."""
     _, size = mip_layout(width, height)
     atlas = compute.texture(size)
-    sh = compute.shader("colour_mip", samplers=("source", "gbuf_position"),
-                        images=(("colour", 'RGBA32F', {'READ', 'WRITE'}),),
-                        push=(('INT', 'level'), ('IVEC2', 'base')), libs=LIBS)
-    sh.uniform_sampler("source", source)
-    sh.uniform_sampler("gbuf_position", gbuf["textures"]["position"])
-    _reduce(sh, "colour", atlas, width, height, 0)
+    _reduce(COLOUR_MIP, width, height, 0, source=source,
+            gbuf_position=gbuf["textures"]["position"], colour=atlas)
     return atlas

@@ -66,8 +66,28 @@ def new_grid(dims) -> dict:
 
 def _grid_push(sh, origin, h, dims, with_origin=True):
     if with_origin:
-        sh.uniform_float("grid_origin", (*compute.vec(origin), float(h)))
-    sh.uniform_int("grid_dims", (int(dims[0]), int(dims[1]), int(dims[2]), 0))
+        sh.uniform_float("grid_origin", grid_origin(origin, h))
+    sh.uniform_int("grid_dims", grid_dims(dims))
+
+
+def grid_origin(origin, h) -> tuple:
+    """lpv_lib.glsl's grid_origin: xyz the grid's corner, w the cell size."""
+    return (*compute.vec(origin), float(h))
+
+
+def grid_dims(dims) -> tuple:
+    return (int(dims[0]), int(dims[1]), int(dims[2]), 0)
+
+
+GRID_PUSH = (('VEC4', 'grid_origin'), ('IVEC4', 'grid_dims'))
+GEOMETRY = compute.Pass("lpv_geometry", push=GRID_PUSH)
+PROPAGATE = compute.Pass("lpv_propagate", samplers=("src_r", "src_g", "src_b", "geometry"),
+                         images=tuple(("out_" + c) for c in GRID) + tuple(
+                             ("acc_" + c, 'RGBA32F', {'READ', 'WRITE'}) for c in GRID),
+                         push=(('IVEC4', 'grid_dims'), ('INT', 'first')))
+GATHER = compute.Pass("lpv_gather",
+                      samplers=("gbuf_position", "gbuf_normal", "acc_r", "acc_g", "acc_b"),
+                      push=GRID_PUSH + (('VEC3', 'cam_pos'),))
 
 
 def _inject_shader():
@@ -86,7 +106,7 @@ def _inject_shader():
         info.vertex_out(iface)
         for slot, c in enumerate(GRID):
             info.fragment_out(slot, 'VEC4', "out_" + c)
-        info.vertex_source(glsl("lpv_lib.glsl") + "\n" + vert)
+        info.vertex_source(vert)
         info.fragment_source(frag)
         _SHADERS["inject"] = gpu.shader.create_from_info(info)
     return _SHADERS["inject"]
@@ -132,12 +152,8 @@ def geometry(resources, origin, h, dims, occlusion: bool = True):
         tex.clear(format='FLOAT', value=(1.0, 1.0, 1.0, 1.0))
         return tex
     out = compute.texture(size)
-    sh = compute.shader("lpv_geometry", push=(('VEC4', 'grid_origin'), ('IVEC4', 'grid_dims')),
-                        libs=("lpv_lib.glsl",), scene=True)
-    resources.bind(sh)
-    _grid_push(sh, origin, h, dims)
-    sh.image("out_image", out)
-    compute.dispatch(sh, *size)
+    GEOMETRY.run(size, scene=resources, grid_origin=grid_origin(origin, h),
+                 grid_dims=grid_dims(dims), out_image=out)
     return out
 
 
@@ -152,21 +168,11 @@ def propagate(src: dict, geometry_tex, dims, iterations: int, work=None):
     acc = work.get("acc") or new_grid(dims)
     if iterations <= 0:
         return src, src, dict(ping=ping, pong=pong, acc=acc)
-    sh = compute.shader(
-        "lpv_propagate", samplers=("src_r", "src_g", "src_b", "geometry"),
-        images=tuple(("out_" + c) for c in GRID) + tuple(
-            ("acc_" + c, 'RGBA32F', {'READ', 'WRITE'}) for c in GRID),
-        push=(('IVEC4', 'grid_dims'), ('INT', 'first')), libs=("lpv_lib.glsl",))
     cur, nxt = src, ping
     for k in range(int(iterations)):
-        for c in GRID:
-            sh.uniform_sampler("src_" + c, cur[c])
-            sh.image("out_" + c, nxt[c])
-            sh.image("acc_" + c, acc[c])
-        sh.uniform_sampler("geometry", geometry_tex)
-        _grid_push(sh, None, 0.0, dims, with_origin=False)
-        sh.uniform_int("first", int(k == 0))
-        compute.dispatch(sh, *size)
+        PROPAGATE.run(size, **{"src_" + c: cur[c] for c in GRID},
+                      **{"out_" + c: nxt[c] for c in GRID}, **{"acc_" + c: acc[c] for c in GRID},
+                      geometry=geometry_tex, grid_dims=grid_dims(dims), first=int(k == 0))
         cur, nxt = nxt, (pong if nxt is ping else ping)
     return acc, cur, dict(ping=ping, pong=pong, acc=acc)
 
@@ -175,19 +181,9 @@ def gather(gbuf: dict, acc: dict, origin, h, dims, cam_pos, width: int, height: 
     """E_indirect per pixel from the accumulated grid (RGBA32F texture)."""
     out = compute.texture((width, height))
     g = gbuf["textures"]
-    sh = compute.shader("lpv_gather", samplers=("gbuf_position", "gbuf_normal", "acc_r", "acc_g",
-                                                "acc_b"),
-                        push=(('VEC4', 'grid_origin'), ('IVEC4', 'grid_dims'),
-                              ('VEC3', 'cam_pos')),
-                        libs=("gbuffer_lib.glsl", "lpv_lib.glsl"))
-    sh.uniform_sampler("gbuf_position", g["position"])
-    sh.uniform_sampler("gbuf_normal", g["normal"])
-    for c in GRID:
-        sh.uniform_sampler("acc_" + c, acc[c])
-    _grid_push(sh, origin, h, dims)
-    sh.uniform_float("cam_pos", compute.vec(cam_pos))
-    sh.image("out_image", out)
-    compute.dispatch(sh, width, height)
+    GATHER.run((width, height), gbuf_position=g["position"], gbuf_normal=g["normal"],
+               **{"acc_" + c: acc[c] for c in GRID}, grid_origin=grid_origin(origin, h),
+               grid_dims=grid_dims(dims), cam_pos=compute.vec(cam_pos), out_image=out)
     return out
 
 

@@ -42,16 +42,37 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import compute, voxel_lighting
+from . import compute
 
 LEVELS, N, RES, SLOT_W = 4, 32, 8, 64          # radiance_cache_layout_lib.glsl's RC_*
 RADIUS = 3.0 ** 0.5                              # RC_RADIUS, in spacings
-LAYOUT = ("octahedral_lib.glsl", "radiance_cache_layout_lib.glsl")
-LOOKUP = LAYOUT + ("radiance_cache_lib.glsl",)   # after gi_trace_lib.glsl for rc_radiance
-MARK = LAYOUT + ("radiance_cache_mark_lib.glsl",)
 SAMPLERS = ("rc_cells", "rc_slots", "rc_state", "rc_atlas", "rc_miss")
-GI_LIBS = ("sampling_lib.glsl",) + voxel_lighting.LIBS + ("gi_trace_lib.glsl",)
 CAMERA = ('VEC4', 'rc_camera')
+RW = {'READ', 'WRITE'}
+FREE = compute.Pass("radiance_cache_free", samplers=("rc_marks",),
+                    images=(("rc_slots_io", 'RGBA32F', RW), ("rc_cells_io", 'R32F', RW),
+                            ("rc_free_out", 'R32F'), ("rc_counter", 'R32I', RW)),
+                    push=(CAMERA, ('INT', 'rc_frame'), ('INT', 'rc_keep'), ('INT', 'rc_reset')))
+ALLOC = compute.Pass("radiance_cache_alloc", samplers=("rc_marks", "rc_free"),
+                     images=(("rc_cells_io", 'R32F', RW), ("rc_slots_io", 'RGBA32F', RW),
+                             ("rc_state_io", 'RGBA32F', RW), ("rc_counter", 'R32I', RW)),
+                     push=(CAMERA, ('INT', 'rc_frame')))
+SELECT = compute.Pass("radiance_cache_select", samplers=("rc_slots", "rc_state"),
+                      images=(("rc_list_out", 'RGBA32F'), ("rc_counter", 'R32I', RW)),
+                      push=(('INT', 'rc_phase'), ('INT', 'rc_cap'), ('INT', 'rc_cursor'),
+                            ('INT', 'rc_window'), CAMERA))   # (the layout lib names rc_camera)
+TRACE = compute.Pass("radiance_cache_trace", samplers=("rc_list", "rc_slots"),
+                     images=(("rc_atlas_io", 'RGBA32F', RW), ("rc_state_io", 'RGBA32F', RW),
+                             ("rc_miss_io", 'R32F', RW)),
+                     push=(CAMERA, ('INT', 'rc_frame'), ('VEC2', 'rc_jitter'), ('FLOAT', 't_max'),
+                           ('FLOAT', 'rc_blend')))
+RESOLVE = compute.Pass("radiance_cache_resolve",
+                       samplers=("probe_info", "probe_normal", "probe_rays") + SAMPLERS,
+                       images=(("probe_radiance_io", 'RGBA32F', RW),),
+                       push=(CAMERA, ('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
+                             ('FLOAT', 't_max')))
+VIEW = compute.Pass("radiance_cache_view", samplers=("gbuf_position", "gbuf_normal") + SAMPLERS,
+                    push=(('VEC3', 'cam_pos'), CAMERA))
 
 
 def trace_distance(spacing: float, level: int = 0) -> float:
@@ -83,11 +104,9 @@ class RadianceCache:
     def camera_vec(self, cam_pos) -> list:
         return compute.vec(cam_pos) + [self.spacing]
 
-    def bind_trace(self, sh, cam_pos, frame: int):
+    def trace_inputs(self, cam_pos, frame: int) -> dict:
         """screen_probe_trace's rc_* inputs (cache on)."""
-        sh.uniform_float("rc_camera", self.camera_vec(cam_pos))
-        sh.uniform_int("rc_frame", int(frame))
-        sh.image("rc_marks", self.marks)
+        return dict(rc_camera=self.camera_vec(cam_pos), rc_frame=int(frame), rc_marks=self.marks)
 
     def update(self, resources, gsdf, cache, sky, voxels, cam_pos, frame: int, t_max: float,
                budget: int, blend: float = 0.25, retrace: int | None = None):
@@ -103,123 +122,46 @@ class RadianceCache:
         self.counter.clear(format='INT', value=(0,))
         self.list.clear(format='FLOAT', value=(-1.0, 0.0, 0.0, 0.0))
 
-        sh = compute.shader("radiance_cache_free", samplers=("rc_marks",),
-                            images=(("rc_slots_io", 'RGBA32F', {'READ', 'WRITE'}),
-                                    ("rc_cells_io", 'R32F', {'READ', 'WRITE'}),
-                                    ("rc_free_out", 'R32F'),
-                                    ("rc_counter", 'R32I', {'READ', 'WRITE'})),
-                            push=(CAMERA, ('INT', 'rc_frame'), ('INT', 'rc_keep'),
-                                  ('INT', 'rc_reset')), libs=LAYOUT)
-        sh.uniform_sampler("rc_marks", self.marks)
-        sh.uniform_float("rc_camera", cam)
-        sh.uniform_int("rc_frame", frame)
-        sh.uniform_int("rc_keep", self.keep)
-        sh.uniform_int("rc_reset", int(self.reset))
-        sh.image("rc_slots_io", self.slots)
-        sh.image("rc_cells_io", self.cells)
-        sh.image("rc_free_out", self.free)
-        sh.image("rc_counter", self.counter)
-        compute.dispatch(sh, SLOT_W, rows)
+        FREE.run((SLOT_W, rows), rc_marks=self.marks, rc_camera=cam, rc_frame=frame,
+                 rc_keep=self.keep, rc_reset=int(self.reset), rc_slots_io=self.slots,
+                 rc_cells_io=self.cells, rc_free_out=self.free, rc_counter=self.counter)
         self.reset = False
 
-        sh = compute.shader("radiance_cache_alloc", samplers=("rc_marks", "rc_free"),
-                            images=(("rc_cells_io", 'R32F', {'READ', 'WRITE'}),
-                                    ("rc_slots_io", 'RGBA32F', {'READ', 'WRITE'}),
-                                    ("rc_state_io", 'RGBA32F', {'READ', 'WRITE'}),
-                                    ("rc_counter", 'R32I', {'READ', 'WRITE'})),
-                            push=(CAMERA, ('INT', 'rc_frame')), libs=LAYOUT)
-        sh.uniform_sampler("rc_marks", self.marks)
-        sh.uniform_sampler("rc_free", self.free)
-        sh.uniform_float("rc_camera", cam)
-        sh.uniform_int("rc_frame", frame)
-        sh.image("rc_cells_io", self.cells)
-        sh.image("rc_slots_io", self.slots)
-        sh.image("rc_state_io", self.state)
-        sh.image("rc_counter", self.counter)
-        compute.dispatch(sh, N * N, N * LEVELS)
+        ALLOC.run((N * N, N * LEVELS), rc_marks=self.marks, rc_free=self.free, rc_camera=cam,
+                  rc_frame=frame, rc_cells_io=self.cells, rc_slots_io=self.slots,
+                  rc_state_io=self.state, rc_counter=self.counter)
 
-        sh = compute.shader("radiance_cache_select", samplers=("rc_slots", "rc_state"),
-                            images=(("rc_list_out", 'RGBA32F'),
-                                    ("rc_counter", 'R32I', {'READ', 'WRITE'})),
-                            push=(('INT', 'rc_phase'), ('INT', 'rc_cap'), ('INT', 'rc_cursor'),
-                                  ('INT', 'rc_window'), CAMERA),
-                            libs=LAYOUT)   # (the layout lib names rc_camera)
         for phase in (0, 1):
-            sh.uniform_sampler("rc_slots", self.slots)
-            sh.uniform_sampler("rc_state", self.state)
-            sh.uniform_int("rc_phase", phase)
-            sh.uniform_int("rc_cap", budget)
-            sh.uniform_int("rc_cursor", self.cursor)
-            sh.uniform_int("rc_window", window)
-            sh.image("rc_list_out", self.list)
-            sh.image("rc_counter", self.counter)
-            compute.dispatch(sh, SLOT_W, rows)
+            SELECT.run((SLOT_W, rows), rc_slots=self.slots, rc_state=self.state, rc_phase=phase,
+                       rc_cap=budget, rc_cursor=self.cursor, rc_window=window, rc_camera=cam,
+                       rc_list_out=self.list, rc_counter=self.counter)
         self.cursor = (self.cursor + window) % self.capacity
 
         if budget:
-            sh = compute.shader("radiance_cache_trace", samplers=("rc_list", "rc_slots")
-                                + voxel_lighting.SAMPLERS,
-                                images=(("rc_atlas_io", 'RGBA32F', {'READ', 'WRITE'}),
-                                        ("rc_state_io", 'RGBA32F', {'READ', 'WRITE'}),
-                                        ("rc_miss_io", 'R32F', {'READ', 'WRITE'})),
-                                push=(CAMERA, ('INT', 'rc_frame'), ('VEC2', 'rc_jitter'),
-                                      ('FLOAT', 't_max'), ('FLOAT', 'rc_blend')),
-                                libs=LAYOUT + GI_LIBS, scene=True, surface_cache=True,
-                                global_sdf=True)
-            resources.bind(sh)
-            cache.bind(sh)
-            gsdf.bind(sh)
-            sky.bind(sh)
-            held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
             rng = np.random.default_rng(frame)        # the same rotation every F12 render
-            sh.uniform_sampler("rc_list", self.list)
-            sh.uniform_sampler("rc_slots", self.slots)
-            sh.uniform_float("rc_camera", cam)
-            sh.uniform_int("rc_frame", frame)
-            sh.uniform_float("rc_jitter", [float(v) for v in rng.random(2)])
-            sh.uniform_float("t_max", float(t_max))
-            sh.uniform_float("rc_blend", float(blend))
-            sh.image("rc_atlas_io", self.atlas)
-            sh.image("rc_state_io", self.state)
-            sh.image("rc_miss_io", self.miss)
-            compute.dispatch(sh, SLOT_W * RES, -(-budget // SLOT_W) * RES)
+            TRACE.run((SLOT_W * RES, -(-budget // SLOT_W) * RES), scene=resources, cache=cache,
+                      gsdf=gsdf, sky=sky, voxels=voxels, rc_list=self.list, rc_slots=self.slots,
+                      rc_camera=cam, rc_frame=frame, rc_jitter=rng.random(2),
+                      t_max=float(t_max), rc_blend=float(blend), rc_atlas_io=self.atlas,
+                      rc_state_io=self.state, rc_miss_io=self.miss)
         self.camera = cam
         self.last = dict(budget=budget, frame=frame)
 
-    def bind(self, sh):
-        """radiance_cache_lib.glsl's samplers."""
-        for name, tex in zip(SAMPLERS, (self.cells, self.slots, self.state, self.atlas,
-                                        self.miss)):
-            sh.uniform_sampler(name, tex)
+    def lookup(self) -> dict:
+        """radiance_cache_lib.glsl's samplers (compute.Pass keywords)."""
+        return dict(zip(SAMPLERS, (self.cells, self.slots, self.state, self.atlas, self.miss)))
 
     def resolve(self, resources, gsdf, cache, sky, voxels, probe_tex: dict, probe_res: int,
                 ray_jitter, cam_pos, t_max: float):
         """radiance_cache_resolve on the screen probes' radiance texture (ray slots, their directions
         in probe_tex["rays"]), in place."""
         r = probe_tex["radiance"]
-        sh = compute.shader("radiance_cache_resolve",
-                            samplers=("probe_info", "probe_normal", "probe_rays") + SAMPLERS
-                            + voxel_lighting.SAMPLERS,
-                            images=(("probe_radiance_io", 'RGBA32F', {'READ', 'WRITE'}),),
-                            push=(CAMERA, ('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
-                                  ('FLOAT', 't_max')),
-                            libs=GI_LIBS + LOOKUP + ("screen_probe_ray_lib.glsl",), scene=True,
-                            surface_cache=True, global_sdf=True)
-        resources.bind(sh)
-        cache.bind(sh)
-        gsdf.bind(sh)
-        sky.bind(sh)
-        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
-        self.bind(sh)
-        sh.uniform_sampler("probe_info", probe_tex["info"])
-        sh.uniform_sampler("probe_rays", probe_tex["rays"])    # the slots' directions
-        sh.uniform_sampler("probe_normal", probe_tex["normal"])
-        sh.uniform_float("rc_camera", self.camera_vec(cam_pos))
-        sh.uniform_int("probe_res", int(probe_res))
-        sh.uniform_float("ray_jitter", compute.vec(ray_jitter, 2))
-        sh.uniform_float("t_max", float(t_max))
-        sh.image("probe_radiance_io", r)
-        compute.dispatch(sh, r.width, r.height)
+        RESOLVE.run((r.width, r.height), scene=resources, cache=cache, gsdf=gsdf, sky=sky,
+                    voxels=voxels, **self.lookup(), probe_info=probe_tex["info"],
+                    probe_rays=probe_tex["rays"], probe_normal=probe_tex["normal"],
+                    rc_camera=self.camera_vec(cam_pos), probe_res=int(probe_res),
+                    ray_jitter=compute.vec(ray_jitter, 2), t_max=float(t_max),
+                    probe_radiance_io=r)
 
     # --- tests and debug views (read-backs) ----------------------------------------------------
     def traced_count(self) -> int:
@@ -245,19 +187,10 @@ class RadianceCache:
         per pixel what the cache gives a ray along the surface normal (w = level + 1; magenta,
         w = 0: no traced probe serves it; background w = -1)."""
         g = gbuf["textures"]
-        sh = compute.shader("radiance_cache_view",
-                            samplers=("gbuf_position", "gbuf_normal") + SAMPLERS,
-                            push=(('VEC3', 'cam_pos'), CAMERA),
-                            libs=("gbuffer_lib.glsl",) + LOOKUP, sky=True)
-        sky.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_float("cam_pos", compute.vec(cam_pos))
-        sh.uniform_float("rc_camera", self.camera_vec(cam_pos))
         out = compute.texture((width, height))
-        sh.image("out_image", out)
-        compute.dispatch(sh, width, height)
+        VIEW.run((width, height), sky=sky, **self.lookup(), gbuf_position=g["position"],
+                 gbuf_normal=g["normal"], cam_pos=compute.vec(cam_pos),
+                 rc_camera=self.camera_vec(cam_pos), out_image=out)
         return compute.read(out)
 
     def stats(self) -> dict:
@@ -270,28 +203,16 @@ class RadianceCache:
                 "radiance_cache_atlas": size(self.atlas, 16) + size(self.miss, 4)}
 
 
-def bind_lookup(sh, rcache, cam_pos):
+def lookup_inputs(rcache, cam_pos) -> dict:
     """A pass that reads the cache (radiance_cache_lib.glsl) and marks cells (image rc_marks):
-    `rcache`'s textures, or with None 1x1 placeholders and rc_camera.w = 0 (off). Returns what
-    the caller holds until the dispatch."""
+    `rcache`'s textures, or with None 1x1 placeholders and rc_camera.w = 0 (off)."""
     if rcache is not None:
-        rcache.bind(sh)
-        sh.uniform_float("rc_camera", rcache.camera_vec(cam_pos))
-        sh.image("rc_marks", rcache.marks)
-        return None
+        return dict(rcache.lookup(), rc_camera=rcache.camera_vec(cam_pos), rc_marks=rcache.marks)
     tex = compute.texture((1, 1), 'R32F')
-    for name in SAMPLERS:
-        sh.uniform_sampler(name, tex)
-    sh.uniform_float("rc_camera", [0.0, 0.0, 0.0, 0.0])
-    sh.image("rc_marks", tex)
-    return tex
+    return dict({name: tex for name in SAMPLERS}, rc_camera=(0.0, 0.0, 0.0, 0.0), rc_marks=tex)
 
 
-def bind_off(sh):
-    """screen_probe_trace's rc_* inputs with the cache off (a 1x1 marks image, held by the
-    caller until the dispatch)."""
-    tex = compute.texture((1, 1), 'R32F')
-    sh.uniform_float("rc_camera", [0.0, 0.0, 0.0, 0.0])
-    sh.uniform_int("rc_frame", 0)
-    sh.image("rc_marks", tex)
-    return tex
+def trace_off() -> dict:
+    """screen_probe_trace's rc_* inputs with the cache off (a 1x1 marks image)."""
+    return dict(rc_camera=(0.0, 0.0, 0.0, 0.0), rc_frame=0,
+                rc_marks=compute.texture((1, 1), 'R32F'))

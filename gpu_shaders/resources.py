@@ -21,6 +21,7 @@ from pathlib import Path
 import gpu
 import numpy as np
 
+from . import glsl_include
 from .object_grid import build_object_grid
 from .packing import OBJECT_TEXELS, PackedScene, pack_bake
 
@@ -28,8 +29,9 @@ GLSL = Path(__file__).resolve().parent / "glsl"
 _SHADERS = {}
 
 
-def glsl(name: str) -> str:
-    return (GLSL / name).read_text(encoding="utf-8")
+def glsl(names) -> str:
+    """glsl/<name> (or several names) with the libraries it #includes (glsl_include.py)."""
+    return glsl_include.source(names, GLSL)
 
 
 def float_buffer(array) -> "gpu.types.Buffer":

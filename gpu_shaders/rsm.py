@@ -24,13 +24,20 @@ from __future__ import annotations
 
 import math
 
-import mathutils
 import numpy as np
 
 from . import compute
 
 SPOT_MAX_HALF = math.radians(80.0)   # a wider spot's map would spend its texels near the edges
-LIBS = ("sampling_lib.glsl", "gbuffer_lib.glsl")
+FLUX = compute.Pass("rsm_flux", samplers=("rsm_position", "rsm_normal", "rsm_albedo", "lights"),
+                    images=("flux_out", "normal_out"),
+                    push=(('INT', 'light_index'), ('FLOAT', 'texel_area'), ('FLOAT', 'tan_half')))
+GATHER = compute.Pass("rsm_gather",
+                      samplers=("gbuf_position", "gbuf_normal", "rsm_position", "rsm_normal",
+                                "rsm_flux"),
+                      images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),),
+                      push=(('MAT4', 'light_vp'), ('VEC3', 'cam_pos'), ('INT', 'samples'),
+                            ('INT', 'frame'), ('INT', 'accumulate')))
 
 
 def scene_bounds(objects):
@@ -143,21 +150,10 @@ class RSM:
         g = render_gbuffer(objects, light_vp, res, res, texture_cache=cache)
         t = g["textures"]
         flux, normal = compute.texture((res, res)), compute.texture((res, res))
-        sh = compute.shader("rsm_flux", samplers=("rsm_position", "rsm_normal", "rsm_albedo",
-                                                  "lights"),
-                            images=("flux_out", "normal_out"),
-                            push=(('INT', 'light_index'), ('FLOAT', 'texel_area'),
-                                  ('FLOAT', 'tan_half')))
-        sh.uniform_sampler("rsm_position", t["position"])
-        sh.uniform_sampler("rsm_normal", t["normal"])
-        sh.uniform_sampler("rsm_albedo", t["albedo"])
-        sh.uniform_sampler("lights", light_texture)
-        sh.uniform_int("light_index", index)
-        sh.uniform_float("texel_area", float(texel_area))
-        sh.uniform_float("tan_half", float(tan_half))
-        sh.image("flux_out", flux)
-        sh.image("normal_out", normal)
-        compute.dispatch(sh, res, res)
+        FLUX.run((res, res), rsm_position=t["position"], rsm_normal=t["normal"],
+                 rsm_albedo=t["albedo"], lights=light_texture, light_index=index,
+                 texel_area=float(texel_area), tan_half=float(tan_half), flux_out=flux,
+                 normal_out=normal)
         self.maps.append(dict(light=index, light_vp=light_vp, texel_area=texel_area,
                               textures=dict(depth=g["depth_texture"], position=t["position"],
                                             normal=normal, flux=flux)))
@@ -175,25 +171,13 @@ class RSM:
         """This frame's E_indirect from every map (RGBA32F texture; zero without maps)."""
         out = compute.texture((self.width, self.height))
         g = gbuf["textures"]
-        sh = compute.shader("rsm_gather", samplers=("gbuf_position", "gbuf_normal",
-                                                    "rsm_position", "rsm_normal", "rsm_flux"),
-                            images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),),
-                            push=(('MAT4', 'light_vp'), ('VEC3', 'cam_pos'), ('INT', 'samples'),
-                                  ('INT', 'frame'), ('INT', 'accumulate')), libs=LIBS)
         for k, m in enumerate(self.maps):
             t = m["textures"]
-            sh.uniform_sampler("gbuf_position", g["position"])
-            sh.uniform_sampler("gbuf_normal", g["normal"])
-            sh.uniform_sampler("rsm_position", t["position"])
-            sh.uniform_sampler("rsm_normal", t["normal"])
-            sh.uniform_sampler("rsm_flux", t["flux"])
-            sh.uniform_float("light_vp", mathutils.Matrix(m["light_vp"].tolist()))
-            sh.uniform_float("cam_pos", compute.vec(cam_pos))
-            sh.uniform_int("samples", int(samples))
-            sh.uniform_int("frame", int(frame))
-            sh.uniform_int("accumulate", int(k > 0))
-            sh.image("out_image", out)
-            compute.dispatch(sh, self.width, self.height)
+            GATHER.run((self.width, self.height), gbuf_position=g["position"],
+                       gbuf_normal=g["normal"], rsm_position=t["position"],
+                       rsm_normal=t["normal"], rsm_flux=t["flux"], light_vp=m["light_vp"],
+                       cam_pos=compute.vec(cam_pos), samples=int(samples), frame=int(frame),
+                       accumulate=int(k > 0), out_image=out)
         return out
 
     def flux_image(self, width: int, height: int) -> np.ndarray:

@@ -38,12 +38,53 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import compute, radiance_cache, screen_trace, voxel_lighting
+from . import compute, radiance_cache, screen_trace
 from .probe_math import hammersley
 
-GI_LIBS = (("sampling_lib.glsl", "octahedral_lib.glsl") + voxel_lighting.LIBS
-           + ("gi_trace_lib.glsl",))
-VL = voxel_lighting.SAMPLERS      # every pass that traces reads the voxel lighting at far hits
+GBUF = ("gbuf_position", "gbuf_normal")
+PROBE_OUT = ("out_image", "probe_normal_out")
+PLACE = compute.Pass("screen_probe_place", samplers=GBUF, images=PROBE_OUT,
+                     push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('VEC2', 'tile_jitter')))
+ADAPTIVE = compute.Pass("screen_probe_adaptive",
+                        samplers=GBUF + ("probe_uniform", "probe_uniform_normal"),
+                        images=PROBE_OUT,
+                        push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('VEC2', 'tile_jitter'),
+                              ('INT', 'uniform_rows')))
+RAYS = compute.Pass("screen_probe_rays",
+                    samplers=GBUF + ("probe_info", "probe_normal", "hist_info", "hist_normal",
+                                     "hist_radiance"),
+                    images=(("out_image", 'R32F'), "probe_plan", "probe_prior"),
+                    push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'probe_res'),
+                          ('INT', 'frame'), ('INT', 'uniform_rows')))
+TRACE = compute.Pass("screen_probe_trace",
+                     samplers=("probe_info", "probe_normal", "probe_rays") + screen_trace.SAMPLERS,
+                     images=("out_image", ("rc_marks", 'R32F')),
+                     push=(screen_trace.PUSH[0], radiance_cache.CAMERA, ('VEC2', 'ray_jitter'),
+                           ('INT', 'probe_res'), ('FLOAT', 't_max'), ('INT', 'rc_frame'),
+                           screen_trace.PUSH[1]))
+COMPOSE = compute.Pass("screen_probe_compose",
+                       samplers=("probe_traced", "probe_plan", "probe_prior"),
+                       images=("out_image", "probe_history_out"), push=(('INT', 'probe_res'),))
+LINKS = compute.Pass("screen_probe_links", samplers=("probe_info", "probe_normal"),
+                     images=(("out_image", 'R32F'),), push=(('IVEC2', 'uniform_grid'),))
+FILTER = compute.Pass("screen_probe_filter",
+                      samplers=("probe_info", "probe_normal", "probe_radiance", "probe_links"),
+                      push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
+                            ('IVEC2', 'uniform_grid')))
+SH = compute.Pass("screen_probe_sh", samplers=("probe_info", "probe_filtered"),
+                  push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')))
+INTEGRATE = compute.Pass("screen_probe_integrate",
+                         samplers=GBUF + ("probe_info", "probe_normal", "probe_sh")
+                         + radiance_cache.SAMPLERS,
+                         images=("out_image", ("rc_marks", 'R32F')),
+                         push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
+                               ('FLOAT', 't_max'), radiance_cache.CAMERA, ('INT', 'uniform_rows')))
+TEMPORAL = compute.Pass("screen_probe_temporal", samplers=("indirect_new", "indirect_history"),
+                        push=(('FLOAT', 'blend'),))
+PIXEL_GATHER = compute.Pass("pixel_gather", samplers=GBUF,
+                            push=(('VEC3', 'cam_pos'), ('INT', 'rays'), ('INT', 'frame'),
+                                  ('FLOAT', 't_max')))
+TRACE_VIEW = compute.Pass("gi_trace_view", push=(('MAT4', 'inv_view_proj'), ('FLOAT', 't_max')))
 
 
 class ScreenProbes:
@@ -88,40 +129,21 @@ class ScreenProbes:
         tex = self.textures
         tex["info"] = compute.texture((gw, gh))
         tex["normal"] = compute.texture((gw, gh))
-        sh = compute.shader("screen_probe_place", samplers=("gbuf_position", "gbuf_normal"),
-                            images=("out_image", "probe_normal_out"),
-                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('VEC2', 'tile_jitter')))
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_float("cam_pos", compute.vec(cam_pos))
-        sh.uniform_int("probe_tile", self.tile)
-        sh.uniform_float("tile_jitter", [float(tile_j[0]), float(tile_j[1])])
-        sh.image("out_image", tex["info"])
-        sh.image("probe_normal_out", tex["normal"])
-        compute.dispatch(sh, gw, gh)
+        cam = compute.vec(cam_pos)
+        gpos, gnor = g["position"], g["normal"]
+        PLACE.run((gw, gh), gbuf_position=gpos, gbuf_normal=gnor, cam_pos=cam,
+                  probe_tile=self.tile, tile_jitter=tile_j, out_image=tex["info"],
+                  probe_normal_out=tex["normal"])
         if adaptive:       # the atlas grows by the 8x8 and 4x4 levels below the uniform probes
             aw, ah = 4 * gw, 7 * gh
             tex["uniform_info"], tex["uniform_normal"] = tex["info"], tex["normal"]
             tex["info"] = compute.texture((aw, ah))
             tex["normal"] = compute.texture((aw, ah))
-            sh = compute.shader("screen_probe_adaptive",
-                                samplers=("gbuf_position", "gbuf_normal", "probe_uniform",
-                                          "probe_uniform_normal"),
-                                images=("out_image", "probe_normal_out"),
-                                push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'),
-                                      ('VEC2', 'tile_jitter'), ('INT', 'uniform_rows')),
-                                libs=("probe_interp_lib.glsl",))
-            sh.uniform_sampler("gbuf_position", g["position"])
-            sh.uniform_sampler("gbuf_normal", g["normal"])
-            sh.uniform_sampler("probe_uniform", tex["uniform_info"])
-            sh.uniform_sampler("probe_uniform_normal", tex["uniform_normal"])
-            sh.uniform_float("cam_pos", compute.vec(cam_pos))
-            sh.uniform_int("probe_tile", self.tile)
-            sh.uniform_float("tile_jitter", [float(tile_j[0]), float(tile_j[1])])
-            sh.uniform_int("uniform_rows", gh)
-            sh.image("out_image", tex["info"])
-            sh.image("probe_normal_out", tex["normal"])
-            compute.dispatch(sh, aw, ah)
+            ADAPTIVE.run((aw, ah), gbuf_position=gpos, gbuf_normal=gnor,
+                         probe_uniform=tex["uniform_info"],
+                         probe_uniform_normal=tex["uniform_normal"], cam_pos=cam,
+                         probe_tile=self.tile, tile_jitter=tile_j, uniform_rows=gh,
+                         out_image=tex["info"], probe_normal_out=tex["normal"])
         else:
             aw, ah = gw, gh
             tex.pop("uniform_info", None)
@@ -143,36 +165,13 @@ class ScreenProbes:
         self.sampled = sampled
 
         tex["radiance"] = compute.texture((aw * r, ah * r))
-        sh = compute.shader("screen_probe_trace",
-                            samplers=("probe_info", "probe_normal", "probe_rays") + VL
-                            + screen_trace.SAMPLERS,
-                            images=("out_image", ("rc_marks", 'R32F')),
-                            push=(screen_trace.PUSH[0], radiance_cache.CAMERA,
-                                  ('VEC2', 'ray_jitter'), ('INT', 'probe_res'), ('FLOAT', 't_max'),
-                                  ('INT', 'rc_frame'), screen_trace.PUSH[1]),
-                            libs=GI_LIBS + ("screen_probe_ray_lib.glsl",) + radiance_cache.MARK
-                            + screen_trace.LIBS, scene=True, surface_cache=True, global_sdf=True)
-        resources.bind(sh)
-        cache.bind(sh)
-        gsdf.bind(sh)
-        sh.uniform_sampler("probe_info", tex["info"])
-        sh.uniform_sampler("probe_normal", tex["normal"])
-        sh.uniform_sampler("probe_rays", tex["rays"])
-        sky.bind(sh)
-        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
-        if screen is not None:
-            screen.bind(sh)
-        else:
-            off = screen_trace.bind_off(sh, gbuf)  # noqa: F841 (held until the dispatch)
-        sh.uniform_int("probe_res", r)
-        sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
-        sh.uniform_float("t_max", float(t_max))
-        if rcache is not None:
-            rcache.bind_trace(sh, cam_pos, frame)
-        else:
-            marks = radiance_cache.bind_off(sh)  # noqa: F841 (held until the dispatch)
-        sh.image("out_image", tex["radiance"])
-        compute.dispatch(sh, aw * r, ah * r)
+        tracers = dict(scene=resources, cache=cache, gsdf=gsdf, sky=sky, voxels=voxels)
+        TRACE.run((aw * r, ah * r), **tracers, probe_info=tex["info"],
+                  probe_normal=tex["normal"], probe_rays=tex["rays"], probe_res=r,
+                  ray_jitter=ray_j, t_max=float(t_max), out_image=tex["radiance"],
+                  **(screen.inputs() if screen is not None else screen_trace.off_inputs(gbuf)),
+                  **(rcache.trace_inputs(cam_pos, frame) if rcache is not None
+                     else radiance_cache.trace_off()))
         if rcache is not None:    # the far field of the rays that met nothing within ~2 m
             rcache.update(resources, gsdf, cache, sky, voxels, cam_pos, frame, t_max, rc_budget,
                           rc_blend, rc_retrace)
@@ -181,89 +180,34 @@ class ScreenProbes:
             tex["traced"] = tex["radiance"]
             tex["radiance"] = compute.texture((aw * r, ah * r))
             tex["history"] = compute.texture((aw * r, ah * r))
-            sh = compute.shader("screen_probe_compose",
-                                samplers=("probe_traced", "probe_plan", "probe_prior"),
-                                images=("out_image", "probe_history_out"),
-                                push=(('INT', 'probe_res'),), libs=("octahedral_lib.glsl",))
-            sh.uniform_sampler("probe_traced", tex["traced"])
-            sh.uniform_sampler("probe_plan", tex["plan"])
-            sh.uniform_sampler("probe_prior", tex["prior"])
-            sh.uniform_int("probe_res", r)
-            sh.image("out_image", tex["radiance"])
-            sh.image("probe_history_out", tex["history"])
-            compute.dispatch(sh, aw * r, ah * r)
+            COMPOSE.run((aw * r, ah * r), probe_traced=tex["traced"], probe_plan=tex["plan"],
+                        probe_prior=tex["prior"], probe_res=r, out_image=tex["radiance"],
+                        probe_history_out=tex["history"])
         else:
             tex["history"] = tex["radiance"]
 
         tex["links"] = compute.texture((aw, ah), 'R32F')
-        sh = compute.shader("screen_probe_links", samplers=("probe_info", "probe_normal"),
-                            images=(("out_image", 'R32F'),), push=(('IVEC2', 'uniform_grid'),),
-                            scene=True)
-        sh.uniform_int("uniform_grid", [gw, gh])
-        resources.bind(sh)
-        sh.uniform_sampler("probe_info", tex["info"])
-        sh.uniform_sampler("probe_normal", tex["normal"])
-        sh.image("out_image", tex["links"])
-        compute.dispatch(sh, aw, ah)
+        LINKS.run((aw, ah), scene=resources, uniform_grid=(gw, gh), probe_info=tex["info"],
+                  probe_normal=tex["normal"], out_image=tex["links"])
 
         tex["filtered"] = compute.texture((aw * r, ah * r))
-        sh = compute.shader("screen_probe_filter",
-                            samplers=("probe_info", "probe_normal", "probe_radiance",
-                                      "probe_links"),
-                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
-                                  ('IVEC2', 'uniform_grid')),
-                            libs=("octahedral_lib.glsl",))
-        sh.uniform_int("uniform_grid", [gw, gh])
-        sh.uniform_sampler("probe_links", tex["links"])
-        sh.uniform_sampler("probe_info", tex["info"])
-        sh.uniform_sampler("probe_normal", tex["normal"])
-        sh.uniform_sampler("probe_radiance", tex["radiance"])
-        sh.uniform_int("probe_res", r)
-        sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
-        sh.image("out_image", tex["filtered"])
-        compute.dispatch(sh, aw * r, ah * r)
+        FILTER.run((aw * r, ah * r), uniform_grid=(gw, gh), probe_links=tex["links"],
+                   probe_info=tex["info"], probe_normal=tex["normal"],
+                   probe_radiance=tex["radiance"], probe_res=r, ray_jitter=ray_j,
+                   out_image=tex["filtered"])
         self.prev = {k: tex[k] for k in ("info", "normal", "history")}   # next frame's prior
 
         tex["sh"] = compute.texture((aw * 3, ah * 3))
-        sh = compute.shader("screen_probe_sh", samplers=("probe_info", "probe_filtered"),
-                            push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')),
-                            libs=("octahedral_lib.glsl", "sh_lib.glsl"))
-        sh.uniform_sampler("probe_info", tex["info"])
-        sh.uniform_sampler("probe_filtered", tex["filtered"])
-        sh.uniform_int("probe_res", r)
-        sh.uniform_float("ray_jitter", compute.vec(ray_j, 2))
-        sh.image("out_image", tex["sh"])
-        compute.dispatch(sh, aw, ah)
+        SH.run((aw, ah), probe_info=tex["info"], probe_filtered=tex["filtered"], probe_res=r,
+               ray_jitter=ray_j, out_image=tex["sh"])
 
         tex["integrated"] = compute.texture((self.width, self.height))
-        sh = compute.shader("screen_probe_integrate",
-                            samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
-                                      "probe_sh") + VL + radiance_cache.SAMPLERS,
-                            images=("out_image", ("rc_marks", 'R32F')),
-                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
-                                  ('FLOAT', 't_max'), radiance_cache.CAMERA,
-                                  ('INT', 'uniform_rows')),
-                            libs=("gbuffer_lib.glsl", "sh_lib.glsl", "probe_interp_lib.glsl")
-                            + GI_LIBS + radiance_cache.LOOKUP + radiance_cache.MARK,
-                            scene=True, surface_cache=True, global_sdf=True)
-        resources.bind(sh)
-        cache.bind(sh)
-        gsdf.bind(sh)
-        sky.bind(sh)
-        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
-        sh.uniform_int("frame", int(frame))
-        sh.uniform_float("t_max", float(t_max))
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_sampler("probe_info", tex["info"])
-        sh.uniform_sampler("probe_normal", tex["normal"])
-        sh.uniform_sampler("probe_sh", tex["sh"])
-        sh.uniform_float("cam_pos", compute.vec(cam_pos))
-        sh.uniform_int("probe_tile", self.tile)
-        sh.uniform_int("uniform_rows", gh if adaptive else 0)
-        rc_held = radiance_cache.bind_lookup(sh, rcache, cam_pos)  # noqa: F841 (dispatch)
-        sh.image("out_image", tex["integrated"])
-        compute.dispatch(sh, self.width, self.height)
+        INTEGRATE.run((self.width, self.height), **tracers, frame=int(frame), t_max=float(t_max),
+                      gbuf_position=gpos, gbuf_normal=gnor, probe_info=tex["info"],
+                      probe_normal=tex["normal"], probe_sh=tex["sh"], cam_pos=cam,
+                      probe_tile=self.tile, uniform_rows=gh if adaptive else 0,
+                      out_image=tex["integrated"],
+                      **radiance_cache.lookup_inputs(rcache, cam_pos))
         return tex["integrated"]
 
     def _plan_rays(self, gbuf: dict, cam_pos, frame: int):
@@ -276,29 +220,14 @@ class ScreenProbes:
         tex["rays"] = compute.texture((aw * r, ah * r), 'R32F')
         tex["plan"] = compute.texture((aw * r, ah * r))
         tex["prior"] = compute.texture((aw * r, ah * r))
-        sh = compute.shader("screen_probe_rays",
-                            samplers=("gbuf_position", "gbuf_normal", "probe_info", "probe_normal",
-                                      "hist_info", "hist_normal", "hist_radiance"),
-                            images=(("out_image", 'R32F'), "probe_plan", "probe_prior"),
-                            push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'probe_res'),
-                                  ('INT', 'frame'), ('INT', 'uniform_rows')),
-                            libs=("sampling_lib.glsl", "octahedral_lib.glsl"))
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_sampler("probe_info", tex["info"])
-        sh.uniform_sampler("probe_normal", tex["normal"])
-        sh.uniform_sampler("hist_info", self.prev["info"])
-        sh.uniform_sampler("hist_normal", self.prev["normal"])
-        sh.uniform_sampler("hist_radiance", self.prev["history"])
-        sh.uniform_float("cam_pos", compute.vec(cam_pos))
-        sh.uniform_int("probe_tile", self.tile)
-        sh.uniform_int("probe_res", r)
-        sh.uniform_int("frame", int(frame))
-        sh.uniform_int("uniform_rows", self.grid[1])
-        sh.image("out_image", tex["rays"])
-        sh.image("probe_plan", tex["plan"])
-        sh.image("probe_prior", tex["prior"])
-        compute.run(sh, aw, ah)          # one work group (res x res) per probe
+        RAYS.run_groups((aw, ah),        # one work group (res x res) per probe
+                        gbuf_position=g["position"], gbuf_normal=g["normal"],
+                        probe_info=tex["info"], probe_normal=tex["normal"],
+                        hist_info=self.prev["info"], hist_normal=self.prev["normal"],
+                        hist_radiance=self.prev["history"], cam_pos=compute.vec(cam_pos),
+                        probe_tile=self.tile, probe_res=r, frame=int(frame),
+                        uniform_rows=self.grid[1], out_image=tex["rays"],
+                        probe_plan=tex["plan"], probe_prior=tex["prior"])
 
     def temporal(self, new, blend: float):
         """history = mix(history, new, blend) (blend 1 or no history: start again)."""
@@ -306,13 +235,8 @@ class ScreenProbes:
             self.history, self.frames = new, 1
             return new
         out = compute.texture((self.width, self.height))
-        sh = compute.shader("screen_probe_temporal", samplers=("indirect_new", "indirect_history"),
-                            push=(('FLOAT', 'blend'),))
-        sh.uniform_sampler("indirect_new", new)
-        sh.uniform_sampler("indirect_history", self.history)
-        sh.uniform_float("blend", float(blend))
-        sh.image("out_image", out)
-        compute.dispatch(sh, self.width, self.height)
+        TEMPORAL.run((self.width, self.height), indirect_new=new, indirect_history=self.history,
+                     blend=float(blend), out_image=out)
         self.history, self.frames = out, self.frames + 1
         return out
 
@@ -334,24 +258,10 @@ def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t
     same tracer, surface cache and voxel lighting as the probes. RGBA32F texture of E."""
     g = gbuf["textures"]
     out = compute.texture((width, height))
-    sh = compute.shader("pixel_gather", samplers=("gbuf_position", "gbuf_normal") + VL,
-                        push=(('VEC3', 'cam_pos'), ('INT', 'rays'), ('INT', 'frame'),
-                              ('FLOAT', 't_max')),
-                        libs=("gbuffer_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
-                        global_sdf=True)
-    resources.bind(sh)
-    cache.bind(sh)
-    gsdf.bind(sh)
-    sh.uniform_sampler("gbuf_position", g["position"])
-    sh.uniform_sampler("gbuf_normal", g["normal"])
-    sh.uniform_float("cam_pos", compute.vec(cam_pos))
-    sky.bind(sh)
-    held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
-    sh.uniform_int("rays", int(rays))
-    sh.uniform_int("frame", int(frame))
-    sh.uniform_float("t_max", float(t_max))
-    sh.image("out_image", out)
-    compute.dispatch(sh, width, height)
+    PIXEL_GATHER.run((width, height), scene=resources, cache=cache, gsdf=gsdf, sky=sky,
+                     voxels=voxels, gbuf_position=g["position"], gbuf_normal=g["normal"],
+                     cam_pos=compute.vec(cam_pos), rays=int(rays), frame=int(frame),
+                     t_max=float(t_max), out_image=out)
     return out
 
 
@@ -361,22 +271,10 @@ def trace_view(resources, gsdf, cache, sky, inv_view_proj, width: int, height: i
     Returns {'hit' (-1 miss), 'global' (bool: the hit came from the global-SDF part), 'voxel'
     (bool: a global hit served by `voxels`, the voxel lighting; None: every global hit is
     refined on the mesh SDFs)}."""
-    import mathutils
-
     out = compute.texture((width, height))
-    sh = compute.shader("gi_trace_view", samplers=VL,
-                        push=(('MAT4', 'inv_view_proj'), ('FLOAT', 't_max')),
-                        libs=("camera_lib.glsl",) + GI_LIBS, scene=True, surface_cache=True,
-                        global_sdf=True)
-    resources.bind(sh)
-    cache.bind(sh)
-    gsdf.bind(sh)
-    sky.bind(sh)
-    held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
-    sh.uniform_float("inv_view_proj", mathutils.Matrix(np.asarray(inv_view_proj, np.float64).tolist()))
-    sh.uniform_float("t_max", float(t_max))
-    sh.image("out_image", out)
-    compute.dispatch(sh, width, height)
+    TRACE_VIEW.run((width, height), scene=resources, cache=cache, gsdf=gsdf, sky=sky,
+                   voxels=voxels, inv_view_proj=inv_view_proj, t_max=float(t_max),
+                   out_image=out)
     data = compute.read(out)
     return {"hit": data[..., 0].copy(), "global": data[..., 1] > 0.5,
             "voxel": (data[..., 0] >= 0) & (data[..., 2] < -0.5)}

@@ -36,8 +36,6 @@ import numpy as np
 
 from . import compute, hzb
 
-LIBS = ("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl",
-        "lumen_trace_lib.glsl")        # after gi_trace_lib.glsl
 # screen_camera: the frame's view_proj, its 4 columns in 4 RGBA32F texels (a sampler and not a
 # push constant: the probe trace's push constants would pass Vulkan's 128 bytes)
 # screen_hidden: R32F, the object-table rows of the camera-hidden instances (one texel of -1: none)
@@ -46,6 +44,8 @@ SAMPLERS = ("gbuf_position", "gbuf_normal", "hzb", "screen_colour", "screen_came
 # screen_cam: camera position xyz, w the thickness (m) a surface is assumed behind the depth
 # buffer; screen_steps: HZB cells per ray (0: off)
 PUSH = (('VEC4', 'screen_cam'), ('INT', 'screen_steps'))
+METHOD = compute.Pass("gi_trace_method", samplers=SAMPLERS,
+                      push=PUSH + (('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 't_max')))
 
 
 class ScreenTrace:
@@ -74,43 +74,24 @@ class ScreenTrace:
         self.colour = composite.composite(self.gbuf, direct_tex, e_history, sky, inv_vp,
                                           self.width, self.height)["textures"]["combined"]
 
-    def bind(self, sh):
+    def inputs(self) -> dict:
+        """A tracing pass's SAMPLERS and PUSH (compute.Pass keywords)."""
         g = self.gbuf["textures"]
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_sampler("hzb", self.hzb)
-        if self.colour is None:                   # no gather yet to read: steps 0 (off)
-            self._dummy = compute.texture((1, 1))
-        sh.uniform_sampler("screen_colour", self.colour if self.colour is not None
-                           else self._dummy)
-        sh.uniform_sampler("screen_camera", self.camera)
-        sh.uniform_sampler("screen_hidden", self.hidden)
-        sh.uniform_float("screen_cam", self.cam)
-        sh.uniform_int("screen_steps", self.steps if self.colour is not None else 0)
+        on = self.colour is not None                # no gather yet to read: steps 0 (off)
+        return dict(gbuf_position=g["position"], gbuf_normal=g["normal"], hzb=self.hzb,
+                    screen_colour=self.colour if on else compute.texture((1, 1)),
+                    screen_camera=self.camera, screen_hidden=self.hidden,
+                    screen_cam=self.cam, screen_steps=self.steps if on else 0)
 
     def method_image(self, resources, gsdf, cache, sky, voxels, t_max: float, rays: int = 8,
                      frame: int = 0) -> np.ndarray:
         """The TRACE_METHOD debug view (glsl/gi_trace_method.comp.glsl, read back: a debug view
         or a test asks for it): float32 [h, w, 4], per pixel the share of `rays` probe-like rays
         served by the screen (r), the mesh SDFs (g), the global SDF (b)."""
-        from . import voxel_lighting
-        from .screen_probes import GI_LIBS, VL
-
         out = compute.texture((self.width, self.height))
-        sh = compute.shader("gi_trace_method", samplers=VL + SAMPLERS,
-                            push=PUSH + (('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 't_max')),
-                            libs=GI_LIBS + LIBS, scene=True, surface_cache=True, global_sdf=True)
-        resources.bind(sh)
-        cache.bind(sh)
-        gsdf.bind(sh)
-        sky.bind(sh)
-        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
-        self.bind(sh)
-        sh.uniform_int("rays", int(rays))
-        sh.uniform_int("frame", int(frame))
-        sh.uniform_float("t_max", float(t_max))
-        sh.image("out_image", out)
-        compute.dispatch(sh, self.width, self.height)
+        METHOD.run((self.width, self.height), scene=resources, cache=cache, gsdf=gsdf, sky=sky,
+                   voxels=voxels, **self.inputs(), rays=int(rays), frame=int(frame),
+                   t_max=float(t_max), out_image=out)
         return compute.read(out)
 
     def stats(self) -> dict:
@@ -141,16 +122,10 @@ def hidden_texture(rows):
     return gpu.types.GPUTexture((len(r), 1), format='R32F', data=float_buffer(r.reshape(1, -1)))
 
 
-def bind_off(sh, gbuf: dict):
-    """Bind what a tracing pass declares when the screen trace is off (steps 0: never read)."""
+def off_inputs(gbuf: dict) -> dict:
+    """ScreenTrace.inputs when the screen trace is off (steps 0: never read)."""
     dummy = compute.texture((1, 1))
     g = gbuf["textures"]
-    sh.uniform_sampler("gbuf_position", g["position"])
-    sh.uniform_sampler("gbuf_normal", g["normal"])
-    sh.uniform_sampler("hzb", dummy)
-    sh.uniform_sampler("screen_colour", dummy)
-    sh.uniform_sampler("screen_camera", dummy)
-    sh.uniform_sampler("screen_hidden", dummy)
-    sh.uniform_float("screen_cam", [0.0, 0.0, 0.0, 0.0])
-    sh.uniform_int("screen_steps", 0)
-    return dummy
+    return dict(gbuf_position=g["position"], gbuf_normal=g["normal"], hzb=dummy,
+                screen_colour=dummy, screen_camera=dummy, screen_hidden=dummy,
+                screen_cam=(0.0, 0.0, 0.0, 0.0), screen_steps=0)

@@ -29,9 +29,16 @@ import numpy as np
 
 from . import compute, hzb
 
-LIBS = ("sampling_lib.glsl", "mip_lib.glsl", "gbuffer_lib.glsl")
-TRACE_LIBS = LIBS + ("screen_trace_lib.glsl",)
 LEFT, STEPS, NONE = -1.0, -2.0, -3.0      # ssgi_trace's miss codes (the hits' w)
+GBUF = ("gbuf_position", "gbuf_normal")
+TRACE = compute.Pass("ssgi_trace", samplers=GBUF + ("hzb",),
+                     push=(('MAT4', 'view_proj'), ('VEC4', 'cam_tmax'), ('IVEC4', 'counts'),
+                           ('FLOAT', 'thickness')))
+RESOLVE = compute.Pass("ssgi_resolve", samplers=GBUF + ("hits", "colour"),
+                       push=(('MAT4', 'view_proj'), ('VEC3', 'cam_pos'), ('INT', 'rays'),
+                             ('INT', 'reuse'), ('FLOAT', 'cone_tan')))
+ACCUMULATE = compute.Pass("gi_accumulate", samplers=("e_new", "e_history"),
+                          push=(('FLOAT', 'blend'),))
 
 
 def cone_tan(rays: int, reuse: int) -> float:
@@ -76,35 +83,16 @@ class SSGI:
         rays = max(int(settings.ssgi_rays), 1)
 
         tex["hits"] = compute.texture((w * rays, h))
-        sh = compute.shader("ssgi_trace", samplers=("gbuf_position", "gbuf_normal", "hzb"),
-                            push=(('MAT4', 'view_proj'), ('VEC4', 'cam_tmax'),
-                                  ('IVEC4', 'counts'), ('FLOAT', 'thickness')), libs=TRACE_LIBS)
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_sampler("hzb", tex["hzb"])
-        sh.uniform_float("view_proj", vp)
-        sh.uniform_float("cam_tmax", compute.vec(cam_pos) + [float(t_max)])
-        sh.uniform_int("counts", [rays, int(frame), int(settings.ssgi_steps), 0])
-        sh.uniform_float("thickness", float(settings.ssgi_thickness))
-        sh.image("out_image", tex["hits"])
-        compute.dispatch(sh, w * rays, h)
+        gbuf_in = dict(gbuf_position=g["position"], gbuf_normal=g["normal"], view_proj=vp)
+        TRACE.run((w * rays, h), **gbuf_in, hzb=tex["hzb"],
+                  cam_tmax=compute.vec(cam_pos) + [float(t_max)],
+                  counts=(rays, int(frame), int(settings.ssgi_steps), 0),
+                  thickness=float(settings.ssgi_thickness), out_image=tex["hits"])
 
         new = compute.texture((w, h))
-        sh = compute.shader("ssgi_resolve", samplers=("gbuf_position", "gbuf_normal", "hits",
-                                                      "colour"),
-                            push=(('MAT4', 'view_proj'), ('VEC3', 'cam_pos'), ('INT', 'rays'),
-                                  ('INT', 'reuse'), ('FLOAT', 'cone_tan')), libs=LIBS)
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_sampler("hits", tex["hits"])
-        sh.uniform_sampler("colour", tex["colour"])
-        sh.uniform_float("view_proj", vp)
-        sh.uniform_float("cam_pos", compute.vec(cam_pos))
-        sh.uniform_int("rays", rays)
-        sh.uniform_int("reuse", int(settings.ssgi_reuse))
-        sh.uniform_float("cone_tan", cone_tan(rays, settings.ssgi_reuse))
-        sh.image("out_image", new)
-        compute.dispatch(sh, w, h)
+        RESOLVE.run((w, h), **gbuf_in, hits=tex["hits"], colour=tex["colour"],
+                    cam_pos=compute.vec(cam_pos), rays=rays, reuse=int(settings.ssgi_reuse),
+                    cone_tan=cone_tan(rays, settings.ssgi_reuse), out_image=new)
 
         self.history, self.frames = accumulate(self.history, new, blend, w, h, self.frames)
         comp = composite.composite(gbuf, direct_textures["direct"], self.history, sky,
@@ -148,11 +136,6 @@ def accumulate(history, new, blend: float, width: int, height: int, frames: int)
     if history is None or blend >= 1.0:
         return new, 1
     out = compute.texture((width, height))
-    sh = compute.shader("gi_accumulate", samplers=("e_new", "e_history"),
-                        push=(('FLOAT', 'blend'),))
-    sh.uniform_sampler("e_new", new)
-    sh.uniform_sampler("e_history", history)
-    sh.uniform_float("blend", float(blend))
-    sh.image("out_image", out)
-    compute.dispatch(sh, width, height)
+    ACCUMULATE.run((width, height), e_new=new, e_history=history, blend=float(blend),
+                   out_image=out)
     return out, frames + 1

@@ -27,12 +27,35 @@ import time
 import gpu
 import numpy as np
 
-from . import compute, voxel_lighting
+from . import compute
 from .card_packing import CARD_TEXELS, PackedCards, pack_cards
 from .resources import SceneResources, float_buffer
 from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule, tile_area, tile_geometry
 
 GROUP = 8
+RW = {'READ', 'WRITE'}
+PAGES = ("sc_pages", "sc_tile_frame")
+
+
+def _pass(name, samplers=(), push=(), images=("out_image",)):
+    """A surface-cache pass: `texel_card` (texel -> card) first among its samplers."""
+    return compute.Pass(name, samplers=("texel_card",) + tuple(samplers), images=images,
+                        push=push)
+
+
+DIRECT = _pass("surface_cache_direct", ("lights", "sc_pages"),
+               (('INT', 'light_count'), ('INT', 'light_samples')))
+PROBE_TRACE = _pass("surface_cache_probe_trace", PAGES, (('INT', 'frame'), ('FLOAT', 't_max')),
+                    ("out_image", "probe_out", "probe_pos_out"))
+PROBE_SH = _pass("surface_cache_probe_sh", ("sc_rays", "sc_probes", "sc_probe_pos") + PAGES,
+                 images=("out_image", "irradiance_out"))
+INDIRECT = _pass("surface_cache_indirect",
+                 ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos") + PAGES,
+                 images=(("out_image", 'RGBA32F', RW), ("delta_image", 'RGBA32F', RW)))
+COMBINE = _pass("surface_cache_combine", ("sc_direct", "sc_indirect"))
+LAYER = _pass("surface_cache_layer", ("sc_direct", "sc_indirect", "sc_tile_age"),
+              (('INT', 'layer_mode'),))
+VIEW = _pass("surface_cache_view", ("gbuf_position", "gbuf_normal"), (('VEC3', 'cam_pos'),))
 
 
 def _tex(size, fmt, data=None):
@@ -185,18 +208,11 @@ class SurfaceCache:
         tiles = tiles if tiles is not None else self._all_tiles()
         if not len(tiles[0]):
             return
-        sh = pass_shader("surface_cache_direct", ("surface_cache_pages_lib.glsl", "light_lib.glsl"),
-                         ("lights", "sc_pages"), (('INT', 'light_count'), ('INT', 'light_samples')))
-        resources.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("lights", light_tex)
         pages = self._page_table(tiles)       # held until the dispatch: a freed texture reads 0
-        sh.uniform_sampler("sc_pages", pages)
-        sh.uniform_int("light_count", int(light_count))
-        sh.uniform_int("light_samples", int(light_samples))
-        sh.image("out_image", self.direct)
-        compute.run(sh, len(tiles[0]) * TILE // GROUP, TILE // GROUP, 1)
+        DIRECT.run_groups((len(tiles[0]) * TILE // GROUP, TILE // GROUP), scene=resources,
+                          cache=self, texel_card=self.texel_card, lights=light_tex,
+                          sc_pages=pages, light_count=int(light_count),
+                          light_samples=int(light_samples), out_image=self.direct)
 
     def light_indirect(self, resources: SceneResources, gsdf, sky, frame: int, t_max: float,
                        tiles, voxels=None) -> int:
@@ -213,74 +229,28 @@ class SurfaceCache:
         pages = self._page_table(tiles)
         t = self.probe_textures
         k = len(idx)
-        probe_libs = ("sampling_lib.glsl", "sh_lib.glsl", "surface_cache_pages_lib.glsl",
-                      "surface_cache_probe_lib.glsl")
-        page_samplers = ("sc_pages", "sc_tile_frame")
-        sh = pass_shader("surface_cache_probe_trace",
-                         probe_libs + voxel_lighting.LIBS + ("gi_trace_lib.glsl",),
-                         page_samplers + voxel_lighting.SAMPLERS,
-                         (('INT', 'frame'), ('FLOAT', 't_max')),
-                         images=("probe_out", "probe_pos_out"), gsdf=True)
-        resources.bind(sh)
-        self.bind(sh)
-        gsdf.bind(sh)
-        sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("sc_pages", pages)
-        sh.uniform_sampler("sc_tile_frame", self.tile_frame)
-        sky.bind(sh)
-        held = voxel_lighting.bind(sh, voxels)  # noqa: F841 (held until the dispatch)
-        sh.uniform_int("frame", int(frame))
-        sh.uniform_float("t_max", float(t_max))
-        sh.image("out_image", t["rays"])
-        sh.image("probe_out", t["probes"])
-        sh.image("probe_pos_out", t["positions"])
-        compute.run(sh, k * TILE // GROUP, TILE // GROUP, 1)            # one thread per ray
-
-        sh = pass_shader("surface_cache_probe_sh", probe_libs,
-                         ("sc_rays", "sc_probes", "sc_probe_pos") + page_samplers,
-                         images=("irradiance_out",))
-        resources.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("sc_rays", t["rays"])
-        sh.uniform_sampler("sc_probes", t["probes"])
-        sh.uniform_sampler("sc_probe_pos", t["positions"])
-        sh.uniform_sampler("sc_pages", pages)
-        sh.uniform_sampler("sc_tile_frame", self.tile_frame)
-        sh.image("out_image", t["sh"])
-        sh.image("irradiance_out", t["irradiance"])
-        compute.run(sh, k * TILE_PROBES // GROUP, TILE_PROBES // GROUP, 1)   # one per probe
-
-        sh = pass_shader("surface_cache_indirect", probe_libs,
-                         ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos")
-                         + page_samplers, images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),
-                                                  ("delta_image", 'RGBA32F', {'READ', 'WRITE'})),
-                         own_out=False)
-        resources.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("sc_probes", t["probes"])
-        sh.uniform_sampler("sc_probe_sh", t["sh"])
-        sh.uniform_sampler("sc_probe_irradiance", t["irradiance"])
-        sh.uniform_sampler("sc_probe_pos", t["positions"])
-        sh.uniform_sampler("sc_pages", pages)
-        sh.uniform_sampler("sc_tile_frame", self.tile_frame)
-        sh.image("out_image", self.indirect)                            # in place: read, blend
-        sh.image("delta_image", self.delta)
-        compute.run(sh, k * TILE // GROUP, TILE // GROUP, 1)            # one per texel
+        common = dict(scene=resources, cache=self, texel_card=self.texel_card, sc_pages=pages,
+                      sc_tile_frame=self.tile_frame)
+        PROBE_TRACE.run_groups((k * TILE // GROUP, TILE // GROUP), **common,   # one per ray
+                               gsdf=gsdf, sky=sky, voxels=voxels, frame=int(frame),
+                               t_max=float(t_max), out_image=t["rays"], probe_out=t["probes"],
+                               probe_pos_out=t["positions"])
+        PROBE_SH.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
+                            sc_rays=t["rays"], sc_probes=t["probes"],   # one per probe
+                            sc_probe_pos=t["positions"], out_image=t["sh"],
+                            irradiance_out=t["irradiance"])
+        INDIRECT.run_groups((k * TILE // GROUP, TILE // GROUP), **common,        # one per texel
+                            sc_probes=t["probes"], sc_probe_sh=t["sh"],
+                            sc_probe_irradiance=t["irradiance"], sc_probe_pos=t["positions"],
+                            out_image=self.indirect, delta_image=self.delta)  # in place: blend
         return k
 
     def combine(self, resources: SceneResources):
         """surface_cache_combine: final = (direct + indirect) * albedo / pi + emissive."""
-        sh = pass_shader("surface_cache_combine", (), ("sc_direct", "sc_indirect"))
-        resources.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("sc_direct", self.direct)
-        sh.uniform_sampler("sc_indirect", self.indirect)
         out = _tex(self.packed.lighting_size, 'RGBA32F')
-        sh.image("out_image", out)
-        self._dispatch(sh)
+        COMBINE.run(self.packed.lighting_size, scene=resources, cache=self,
+                    texel_card=self.texel_card, sc_direct=self.direct, sc_indirect=self.indirect,
+                    out_image=out)
         self.final = out
 
     LAYERS = {"albedo": 0, "normal": 1, "direct": 2, "indirect": 3, "position": 4, "cards": 5,
@@ -289,61 +259,41 @@ class SurfaceCache:
 
     def layer(self, resources: SceneResources, name: str):
         """surface_cache_layer: an RGBA32F lighting-atlas texture of one LAYERS view."""
-        sh = pass_shader("surface_cache_layer", (), ("sc_direct", "sc_indirect", "sc_tile_age"),
-                         (('INT', 'layer_mode'),))
         tw, th = self.pages.grid
         ages = _tex((tw, th), 'R32F', self.pages.ages())     # held until the dispatch
-        resources.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("sc_direct", self.direct)
-        sh.uniform_sampler("sc_indirect", self.indirect)
-        sh.uniform_sampler("sc_tile_age", ages)
-        sh.uniform_int("layer_mode", self.LAYERS[name])
         out = _tex(self.packed.lighting_size, 'RGBA32F')
-        sh.image("out_image", out)
-        self._dispatch(sh)
+        LAYER.run(self.packed.lighting_size, scene=resources, cache=self,
+                  texel_card=self.texel_card, sc_direct=self.direct, sc_indirect=self.indirect,
+                  sc_tile_age=ages, layer_mode=self.LAYERS[name], out_image=out)
         return out
 
     def view(self, resources: SceneResources, gbuf: dict, cam_pos, width: int, height: int,
              name: str = "final") -> np.ndarray:
         """surface_cache_view: float32 [h, w, 4], the surface cache's `name` layer sampled at every
         G-buffer pixel through the cards (w: card weight, 0 where no card sees the pixel)."""
-        sh = pass_shader("surface_cache_view", ("gbuffer_lib.glsl",),
-                         ("gbuf_position", "gbuf_normal"),
-                         (('VEC3', 'cam_pos'),))
         source = self.final if name == "final" else self.layer(resources, name)
-        resources.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("sc_final", source)
-        sh.uniform_sampler("texel_card", self.texel_card)
-        sh.uniform_sampler("gbuf_position", gbuf["textures"]["position"])
-        sh.uniform_sampler("gbuf_normal", gbuf["textures"]["normal"])
-        sh.uniform_float("cam_pos", [float(c) for c in np.asarray(cam_pos, np.float64)[:3]])
         out = _tex((width, height), 'RGBA32F')
-        sh.image("out_image", out)
-        compute.run(sh, -(-width // GROUP), -(-height // GROUP), 1)
+        VIEW.run((width, height), scene=resources, cache=_Showing(self, source),
+                 texel_card=self.texel_card, gbuf_position=gbuf["textures"]["position"],
+                 gbuf_normal=gbuf["textures"]["normal"], cam_pos=compute.vec(cam_pos),
+                 out_image=out)
         return compute.read(out)
 
     def read_layer(self, resources: SceneResources, name: str) -> np.ndarray:
         """float32 [h, w, 4] of a LAYERS view of the lighting atlas."""
         return compute.read(self.layer(resources, name))
 
-    def _dispatch(self, sh):
-        lw, lh = self.packed.lighting_size
-        compute.run(sh, -(-lw // GROUP), -(-lh // GROUP), 1)
-
     def read(self, name: str) -> np.ndarray:
         """float32 [h, w, 4] of a lighting texture ('direct', 'indirect', 'final')."""
         return compute.read(getattr(self, name))
 
 
-def pass_shader(name: str, libs=(), samplers=(), push=(), images=(), gsdf=False, own_out=True):
-    """compute.shader for a surface-cache pass: the SDF and surface-cache samplers, `texel_card`
-    and the extra 2D `samplers`, an RGBA32F write-only `out_image` (unless own_out is False:
-    `images` declares it) and more `images`, `push` constants ((type, name)), with gsdf the global
-    SDF's; surface_cache_texel_lib.glsl and `libs` before glsl/<name>.comp.glsl."""
-    return compute.shader(name, samplers=("texel_card",) + tuple(samplers),
-                          images=(("out_image",) if own_out else ()) + tuple(images), push=push,
-                          libs=("surface_cache_texel_lib.glsl",) + tuple(libs), scene=True,
-                          surface_cache=True, global_sdf=gsdf)
+class _Showing:
+    """The cache bound with `final` in place of its final light (the view pass's layers)."""
+
+    def __init__(self, cache, final):
+        self.cache, self.final = cache, final
+
+    def bind(self, shader):
+        self.cache.bind(shader)
+        shader.uniform_sampler("sc_final", self.final)

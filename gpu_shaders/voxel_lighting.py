@@ -49,10 +49,18 @@ FORMAT = 'RGBA16F'
 BYTES = {'RGBA16F': 8, 'R32F': 4}
 SAMPLER = "vl_radiance"
 TILES = "vl_tiles"
-SAMPLERS = (SAMPLER, TILES)   # a tracing pass's samplers (gi_trace_lib.glsl)
-LAYOUT = "voxel_lighting_layout_lib.glsl"
-LIBS = (LAYOUT, "voxel_lighting_lib.glsl")   # a tracing pass's libs, before gi_trace_lib.glsl
-_SHADERS = {}
+SAMPLERS = (SAMPLER, TILES)   # voxel_lighting_lib.glsl's and voxel_lighting_trace_lib.glsl's
+# voxel_lighting_tiles appends to the list with an atomic add on an R32I image
+TILES_PASS = compute.Pass("voxel_lighting_tiles",
+                          images=(("out_image", 'R32F'), ("vl_faces_out", FORMAT),
+                                  ("vl_list_out", 'R32F'),
+                                  ("vl_counter", 'R32I', {'READ', 'WRITE'})),
+                          push=(('INT', 'vl_level'), ('FLOAT', 'vl_reach'),
+                                ('INT', 'vl_capacity')))
+UPDATE = compute.Pass("voxel_lighting_update", samplers=("vl_tiles", "vl_list"),
+                      images=(("out_image", FORMAT),), push=(('INT', 'vl_level'),))
+VIEW = compute.Pass("voxel_lighting_view", samplers=("gbuf_position", "gbuf_normal"),
+                    push=(('VEC3', 'cam_pos'),))
 
 
 def _placeholder():
@@ -60,6 +68,36 @@ def _placeholder():
     every global-SDF hit is searched on every mesh SDF, as before). Callers hold it until the
     dispatch."""
     return compute.texture((1, 1), FORMAT)
+
+
+def declare_radiance(info, slot: int) -> int:
+    """voxel_lighting_lib.glsl's sampler (compute.Pass: its includer's `voxels=`)."""
+    info.sampler(slot, 'FLOAT_2D', SAMPLER)
+    return slot + 1
+
+
+def declare_tiles(info, slot: int) -> int:
+    """voxel_lighting_trace_lib.glsl's sampler: the tiles' object lists."""
+    info.sampler(slot, 'FLOAT_2D', TILES)
+    return slot + 1
+
+
+def bind_radiance(shader, voxel_lighting):
+    """SAMPLER to `voxel_lighting`, or a placeholder when None (returned: hold it until the
+    dispatch; vl_enabled() is false)."""
+    if voxel_lighting is not None:
+        voxel_lighting.bind(shader)
+        return None
+    tex = _placeholder()
+    shader.uniform_sampler(SAMPLER, tex)
+    return tex
+
+
+def bind_tiles(shader, voxel_lighting):
+    """TILES to `voxel_lighting`'s, or a placeholder when None (returned, as bind_radiance)."""
+    tex = voxel_lighting.tiles if voxel_lighting is not None else _placeholder()
+    shader.uniform_sampler(TILES, tex)
+    return None if voxel_lighting is not None else tex
 
 
 def bind(shader, voxel_lighting):
@@ -130,30 +168,15 @@ class VoxelLighting:
         v = gsdf.voxels[level]
         self.list.clear(format='FLOAT', value=(-1.0,))
         self.counter.clear(format='INT', value=(0,))
-        sh = _tiles_shader()
-        resources.bind(sh)
-        gsdf.bind(sh)
-        sh.uniform_int("vl_level", level)
         # a face ray reaches one voxel past its voxel, plus the thin-wall hit shell
-        sh.uniform_float("vl_reach", float(1.5 * v + 2.0 * gsdf.thin_margin()))
-        sh.uniform_int("vl_capacity", self.capacity)
-        sh.image("out_image", self.tiles)
-        sh.image("vl_faces_out", self.texture)
-        sh.image("vl_list_out", self.list)
-        sh.image("vl_counter", self.counter)
-        compute.dispatch(sh, tn, tn * tn)
-
-        sh = compute.shader("voxel_lighting_update", samplers=("vl_tiles", "vl_list"),
-                            images=(("out_image", FORMAT),), push=(('INT', 'vl_level'),),
-                            libs=(LAYOUT,), scene=True, surface_cache=True, global_sdf=True)
-        resources.bind(sh)
-        cache.bind(sh)
-        gsdf.bind(sh)
-        sh.uniform_sampler("vl_tiles", self.tiles)
-        sh.uniform_sampler("vl_list", self.list)
-        sh.uniform_int("vl_level", level)
-        sh.image("out_image", self.texture)
-        compute.dispatch(sh, LIST_WIDTH, self.capacity // LIST_WIDTH)
+        TILES_PASS.run((tn, tn * tn), scene=resources, gsdf=gsdf, vl_level=level,
+                       vl_reach=float(1.5 * v + 2.0 * gsdf.thin_margin()),
+                       vl_capacity=self.capacity, out_image=self.tiles,
+                       vl_faces_out=self.texture, vl_list_out=self.list,
+                       vl_counter=self.counter)
+        UPDATE.run((LIST_WIDTH, self.capacity // LIST_WIDTH), scene=resources, cache=cache,
+                   gsdf=gsdf, vl_tiles=self.tiles, vl_list=self.list, vl_level=level,
+                   out_image=self.texture)
 
     def read_count(self) -> int:
         """Voxels the last level update listed (== capacity: the list was full, voxels may have
@@ -162,7 +185,7 @@ class VoxelLighting:
 
     # --- reading from other passes ------------------------------------------------------------
     def bind(self, shader):
-        """Set voxel_lighting_lib.glsl's sampler (a pass lists SAMPLER among its samplers)."""
+        """Set voxel_lighting_lib.glsl's sampler (a compute.Pass including it: voxels=)."""
         shader.uniform_sampler(SAMPLER, self.texture)
 
     def view(self, gsdf, gbuf: dict, cam_pos, width: int, height: int):
@@ -170,18 +193,9 @@ class VoxelLighting:
         per pixel what a global-SDF hit there reads (w = level + 1; magenta, w = 0: no voxel face;
         background w = -1)."""
         g = gbuf["textures"]
-        sh = compute.shader("voxel_lighting_view",
-                            samplers=("gbuf_position", "gbuf_normal", SAMPLER),
-                            push=(('VEC3', 'cam_pos'),), libs=("gbuffer_lib.glsl",) + LIBS,
-                            global_sdf=True)
-        gsdf.bind(sh)
-        self.bind(sh)
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_float("cam_pos", compute.vec(cam_pos))
         out = compute.texture((width, height))
-        sh.image("out_image", out)
-        compute.dispatch(sh, width, height)
+        VIEW.run((width, height), gsdf=gsdf, voxels=self, gbuf_position=g["position"],
+                 gbuf_normal=g["normal"], cam_pos=compute.vec(cam_pos), out_image=out)
         return compute.read(out)
 
     def read(self):
@@ -197,25 +211,3 @@ class VoxelLighting:
         return {"voxel_lighting": self.texture.width * self.texture.height * BYTES[FORMAT],
                 "voxel_lighting_tiles": (self.tiles.width * self.tiles.height
                                          + self.list.width * self.list.height + 1) * 4}
-
-
-def _tiles_shader():
-    """voxel_lighting_tiles, declared here rather than by compute.shader: it appends to the list
-    with an atomic add on an R32I image, and compute.shader declares float images only."""
-    if "tiles" not in _SHADERS:
-        from .global_sdf import GlobalSDF
-        from .resources import SceneResources, glsl
-
-        info = compute.new_info()
-        GlobalSDF.declare(info, SceneResources.declare(info, 0))
-        info.image(0, 'R32F', 'FLOAT_2D', 'out_image', qualifiers={'WRITE'})
-        info.image(1, FORMAT, 'FLOAT_2D', 'vl_faces_out', qualifiers={'WRITE'})
-        info.image(2, 'R32F', 'FLOAT_2D', 'vl_list_out', qualifiers={'WRITE'})
-        info.image(3, 'R32I', 'INT_2D', 'vl_counter', qualifiers={'READ', 'WRITE'})
-        info.push_constant('INT', 'vl_level')
-        info.push_constant('FLOAT', 'vl_reach')
-        info.push_constant('INT', 'vl_capacity')
-        _SHADERS["tiles"] = compute.create(info, "\n".join(
-            glsl(name) for name in ("sdf_lib.glsl", "global_sdf_lib.glsl", LAYOUT,
-                                    "voxel_lighting_tiles.comp.glsl")))
-    return _SHADERS["tiles"]

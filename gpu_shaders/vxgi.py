@@ -34,10 +34,10 @@ import math
 
 import numpy as np
 
-from . import compute, voxel_lighting
+from . import compute
 
-LIBS = ("sampling_lib.glsl", "gbuffer_lib.glsl", voxel_lighting.LAYOUT, "voxel_lighting_lib.glsl")
-
+CONES = compute.Pass("vxgi_cones", samplers=("gbuf_position", "gbuf_normal"),
+                     push=(('VEC4', 'cam_tmax'), ('VEC4', 'cone'), ('IVEC4', 'counts')))
 
 class VXGI:
     """The cones' output and history for one image size (held on SceneState.gi_methods); the
@@ -65,21 +65,11 @@ class VXGI:
         half = math.radians(float(s.vxgi_cone_angle) * 0.5)
         g = gbuf["textures"]
         out = self.textures["cones"] = compute.texture((self.width, self.height))
-        sh = compute.shader("vxgi_cones",
-                            samplers=("gbuf_position", "gbuf_normal", voxel_lighting.SAMPLER),
-                            push=(('VEC4', 'cam_tmax'), ('VEC4', 'cone'), ('IVEC4', 'counts')),
-                            libs=LIBS, global_sdf=True, sky=True)
-        gsdf.bind(sh)
-        sky.bind(sh)
-        voxels.bind(sh)
-        sh.uniform_sampler("gbuf_position", g["position"])
-        sh.uniform_sampler("gbuf_normal", g["normal"])
-        sh.uniform_float("cam_tmax", compute.vec(cam_pos) + [float(min(t_max, s.vxgi_distance))])
-        sh.uniform_float("cone", [math.sin(half), math.cos(half), float(s.vxgi_step),
-                                  float(s.vxgi_offset)])
-        sh.uniform_int("counts", [int(s.vxgi_cones), int(frame), 0, 0])
-        sh.image("out_image", out)
-        compute.dispatch(sh, self.width, self.height)
+        CONES.run((self.width, self.height), gsdf=gsdf, sky=sky, voxels=voxels,
+                  gbuf_position=g["position"], gbuf_normal=g["normal"],
+                  cam_tmax=compute.vec(cam_pos) + [float(min(t_max, s.vxgi_distance))],
+                  cone=(math.sin(half), math.cos(half), float(s.vxgi_step), float(s.vxgi_offset)),
+                  counts=(int(s.vxgi_cones), int(frame), 0, 0), out_image=out)
         return out
 
     def temporal(self, new, blend: float):

@@ -1,3 +1,4 @@
+#include "gbuffer_lib.glsl"
 /* Anti-aliasing, one jittered sample (antialias.py): the indirect irradiance at this sample's
  * surface points, from the frame's E (computed once on the unjittered G-buffer). Each pixel
  * takes the unjittered pixels of its 3x3 neighbourhood that show the same surface (normals

@@ -1,3 +1,4 @@
+#include "mip_lib.glsl"
 /* Scene colour pyramid (hzb.py, SSGI's cone-filtered radiance): level 0 (level = 0) is the
  * source image premultiplied by surface coverage (rgb x a, a = 1 on a surface, 0 on the
  * background: rays never hit the background, so the sky must not bleed into a cone's average);

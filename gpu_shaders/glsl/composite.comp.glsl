@@ -1,3 +1,5 @@
+#include "sky_lib.glsl"
+#include "camera_lib.glsl"
 /* Composite: Combined = albedo * (Diffuse Direct + Diffuse Indirect) + emission (Cycles' passes:
  * Diffuse Direct / Indirect = E / pi without the albedo), the world on the background.
  * Inputs: gbuf_position, gbuf_albedo, gbuf_emission, direct (E_direct / pi), indirect (E_indirect,

@@ -1,3 +1,7 @@
+#include "sdf_lib.glsl"
+#include "sky_lib.glsl"
+#include "camera_lib.glsl"
+#include "light_lib.glsl"
 /* Lumen GI direct light per pixel from the G-buffer (needs sdf_lib.glsl, light_lib.glsl,
  * sky_lib.glsl, camera_lib.glsl).
  *

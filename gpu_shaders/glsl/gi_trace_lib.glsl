@@ -1,3 +1,10 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "global_sdf_lib.glsl"
+#include "surface_cache_lib.glsl"
+#include "sky_lib.glsl"
+#include "voxel_lighting_lib.glsl"
+#include "voxel_lighting_trace_lib.glsl"
 /* Lumen GI: the rays of the GI passes (needs sdf_lib.glsl, sdf_ray_lib.glsl,
  * global_sdf_lib.glsl, voxel_lighting_layout_lib.glsl, voxel_lighting_lib.glsl,
  * surface_cache_lib.glsl, sky_lib.glsl).

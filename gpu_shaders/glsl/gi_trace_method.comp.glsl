@@ -1,3 +1,8 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "gbuffer_lib.glsl"
+#include "sampling_lib.glsl"
+#include "lumen_trace_lib.glsl"
 /* Debug view TRACE_METHOD (the lecture's picture in "Speed of Different Tracing Methods"): per
  * G-buffer pixel, `rays` cosine rays from where a screen probe there would start them, each
  * through lumen_trace_lib.glsl exactly as the probes trace; the share served by the screen trace

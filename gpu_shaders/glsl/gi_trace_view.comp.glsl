@@ -1,3 +1,6 @@
+#include "global_sdf_lib.glsl"
+#include "camera_lib.glsl"
+#include "gi_trace_lib.glsl"
 /* Debug view of the GI rays: one gi_trace (gi_trace_lib.glsl) per camera ray, the tracer every GI
  * pass uses. Output out_image: (hit distance or -1, 1 when the hit came from the global-SDF part
  * (t >= GSDF_MESH_SPLIT, then refined on a mesh), hit object, 0).

@@ -1,3 +1,4 @@
+#include "sdf_lib.glsl"
 /* Lumen GI: build (or scroll) one clipmap level of the global SDF from the mesh SDFs
  * (needs sdf_lib.glsl before it and global_sdf_lib.glsl's gsdf_imod).
  *

@@ -1,12 +1,12 @@
-/* Lumen GI: sampling the global SDF (4 clipmap levels around the camera) and the hybrid trace.
+/* Lumen GI: sampling the global SDF (4 clipmap levels around the camera).
  *
  * Resources (declared by GlobalSDF.declare, bound by GlobalSDF.bind, gpu_shaders/global_sdf.py):
  *   sampler3D gsdf_level0..3   R16F/R32F, N^3, toroidally addressed (see global_sdf_build.comp.glsl)
  *   GlobalSDFParams gsdf  a uniform block: gsdf.origin[k].xyz the level's first world cell
  *                         (integers), .w its voxel size (m); values are clamped to
  *                         min(d, gsdf.band.x * voxel) per level
- * trace_hybrid needs sdf_lib.glsl (the mesh SDFs) included before this file; without it only the
- * sampling functions are defined. All reads are texelFetch; the trilinear
+ * The hybrid trace (mesh SDFs near, global SDF far) is global_sdf_trace_lib.glsl. All reads are
+ * texelFetch; the trilinear
  * filter is done here in float32 (the toroidal wrap rules out the hardware filter).
  */
 
@@ -97,49 +97,3 @@ float global_sdf_sample(vec3 p)
   return global_sdf_sample(p, level, voxel);
 }
 
-#ifdef SDF_BRICK   /* sdf_lib.glsl is included */
-
-/* Sphere trace from origin along unit dir up to tmax: the mesh SDFs (sdf_scene) while
- * t < GSDF_MESH_SPLIT, the global SDF beyond. Stepping as sdf_trace.comp.glsl: hit when
- * d <= 0.05 voxel, advance by max(d, 0.1 voxel), the voxel being the nearest object's (mesh part)
- * or the sampled level's (global part). Leaving the coarsest clipmap is a miss. Returns the hit t
- * or -1; steps: samples taken; global_steps: of those, global SDF samples. */
-float trace_hybrid(vec3 origin, vec3 dir, float tmax, int max_steps, out int steps, out int global_steps)
-{
-  float t = 0.0;
-  steps = 0;
-  global_steps = 0;
-  while (steps < max_steps && t <= tmax) {
-    vec3 p = origin + t * dir;
-    float d, h;
-    steps++;
-    if (t < GSDF_MESH_SPLIT) {
-      int nearest;
-      d = sdf_scene(p, h, nearest);
-      if (d <= 0.05 * h) {
-        return t;
-      }
-    }
-    else {
-      int level;
-      global_steps++;
-      d = global_sdf_sample(p, level, h);
-      if (level < 0) {
-        return -1.0;
-      }
-      if (d <= 0.05 * h) {
-        return t;
-      }
-    }
-    t += max(d, 0.1 * h);
-  }
-  return -1.0;
-}
-
-float trace_hybrid(vec3 origin, vec3 dir, float tmax)
-{
-  int steps, global_steps;
-  return trace_hybrid(origin, dir, tmax, 512, steps, global_steps);
-}
-
-#endif

@@ -1,3 +1,4 @@
+#include "mip_lib.glsl"
 /* HZB level `level` from level - 1 (hzb.py): each texel the MIN of its children's window depths
  * (2x2, or fewer at an odd edge), the nearest surface in its cell. The lecture's "min-depth
  * mipmap": a ray segment whose depth stays below a cell's min is in front of everything the cell

@@ -1,3 +1,4 @@
+#include "sdf_lib.glsl"
 /* Lumen GI: irradiance from Blender's lights with SDF cone-traced soft shadows (needs
  * sdf_lib.glsl). Shared by the per-pixel direct pass and the surface cache.
  *

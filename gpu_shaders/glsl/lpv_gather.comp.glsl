@@ -1,3 +1,5 @@
+#include "gbuffer_lib.glsl"
+#include "lpv_lib.glsl"
 /* LPV lookup per pixel (lpv.py; lecture 21, "Scene lighting with final light propagation
  * volume"): the accumulated grid (acc_r, acc_g, acc_b: the sum of the injected light and every
  * iteration's) read trilinearly between cell centres at x + h/2 n (half a cell in front of the

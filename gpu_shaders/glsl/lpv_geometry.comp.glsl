@@ -1,3 +1,5 @@
+#include "sdf_lib.glsl"
+#include "lpv_lib.glsl"
 /* LPV geometry occlusion (lpv.py): per cell, how much of the light crossing to its +x, +y, +z
  * neighbour gets through, from the mesh SDFs (sdf_scene) instead of the paper's geometry volume
  * of surfels (Kaplanyan and Dachsbacher 2010: a fuzzy blocking potential |n . w| x coverage).

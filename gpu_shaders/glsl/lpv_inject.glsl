@@ -1,3 +1,4 @@
+#include "lpv_lib.glsl"
 /* LPV injection (lpv.py; lecture 21, "Light Injection"): one point per texel of a light's
  * reflective shadow map (rsm.py: rsm_position, rsm_normal turned to the light, rsm_flux = the
  * flux Phi the texel reflects), drawn with additive blending into the grid's three textures

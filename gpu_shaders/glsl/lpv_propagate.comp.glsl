@@ -1,3 +1,4 @@
+#include "lpv_lib.glsl"
 /* LPV propagation, one iteration (lpv.py; lecture 21, "Radiance Propagation"; Kaplanyan and
  * Dachsbacher 2010's face-based scheme), gathered per destination cell d from its 6 neighbours
  * s = d - dir. The light s sends towards each of the 5 faces of d that do not face s passes the

@@ -1,3 +1,7 @@
+#include "sdf_lib.glsl"
+#include "global_sdf_lib.glsl"
+#include "gi_trace_lib.glsl"
+#include "screen_trace_lib.glsl"
 /* Lumen's ray (lecture 21, "Speed of Different Tracing Methods"; needs gi_trace_lib.glsl,
  * screen_trace_lib.glsl and screen_trace.py's SAMPLERS and PUSH): the screen first (HZB, at
  * most screen_steps cells; a hit reads screen_colour), then from where the depth buffer stops

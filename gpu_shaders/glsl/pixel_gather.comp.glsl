@@ -1,3 +1,9 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "surface_cache_lib.glsl"
+#include "gbuffer_lib.glsl"
+#include "sampling_lib.glsl"
+#include "gi_trace_lib.glsl"
 /* Reference final gather (tests and the "brute force" check of the screen probes): per G-buffer
  * pixel, `rays` cosine-distributed rays (a Hammersley set rotated per pixel and frame) through
  * gi_trace_lib.glsl, E = pi * mean(L): the same rays and surface cache as the probes, without

@@ -1,3 +1,4 @@
+#include "radiance_cache_layout_lib.glsl"
 /* Radiance cache, per clipmap cell: a cell marked this frame (a screen probe interpolates its
  * probe) without a probe takes the next free slot (rc_counter[1] counts them; past the free
  * list's length rc_counter[0] it gets none and the rays there trace on). The new slot records its

@@ -1,3 +1,4 @@
+#include "radiance_cache_layout_lib.glsl"
 /* Radiance cache, per probe slot: keep the probe of a cell that screen probes used within the
  * last rc_keep frames and that is still inside its clipmap; free the others (rc_reset: all, the
  * scene changed) and list every free slot (rc_free_out, appended with rc_counter[0]) for

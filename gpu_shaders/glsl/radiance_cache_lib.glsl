@@ -1,3 +1,6 @@
+#include "sky_lib.glsl"
+#include "octahedral_lib.glsl"
+#include "radiance_cache_layout_lib.glsl"
 /* Lumen GI: reading the world radiance cache (needs radiance_cache_layout_lib.glsl,
  * octahedral_lib.glsl, sky_lib.glsl and the samplers rc_cells, rc_slots, rc_state, rc_atlas,
  * rc_miss).
@@ -11,7 +14,7 @@
  * texel's nearest hit): else a wall lies between the probe and the ray, and the probe (in a
  * solid, behind a thin wall) is left out. A texel holds its hits' light plus the share of its
  * rays that left the scene: that share of the sky is read in the ray's own direction d. False when no probe is left (the ray traces on).
- * rc_radiance (with gi_trace_lib.glsl included before): a whole ray, short trace + cache.
+ * rc_radiance (radiance_cache_trace_lib.glsl): a whole ray, short trace + cache.
  */
 #ifndef LUMEN_RC_LIB
 #define LUMEN_RC_LIB
@@ -62,32 +65,4 @@ bool rc_lookup(vec3 o, vec3 d, int k, out vec3 L)
   L = sum / wsum;
   return true;
 }
-#ifdef GI_GLOBAL_STEPS   /* gi_trace_lib.glsl is included */
-/* gi_radiance with the cache: trace rc_trace_distance, then the cache; where no probe serves
- * the ray, on to tmax. k: the cache level of o (-1: none, an ordinary ray). status: 0 a hit
- * within the short distance or no cache, 1 served by the cache (hit_t = tmax + 1), 2 traced on. */
-vec3 rc_radiance(vec3 o, vec3 dir, float tmax, int k, out float hit_t, out int status)
-{
-  float w;
-  status = 0;
-  if (k < 0) {
-    return gi_radiance(o, dir, tmax, hit_t, w);
-  }
-  float T = min(rc_trace_distance(k), tmax);
-  vec3 L = gi_radiance(o, dir, T, hit_t, w);
-  if (hit_t < T || T >= tmax) {
-    return L;
-  }
-  if (rc_lookup(o, dir, k, L)) {
-    status = 1;
-    hit_t = tmax + 1.0;
-    return L;
-  }
-  status = 2;
-  float t;
-  L = gi_radiance(o + T * dir, dir, tmax - T, t, w);
-  hit_t = T + t;
-  return L;
-}
-#endif
 #endif /* LUMEN_RC_LIB */

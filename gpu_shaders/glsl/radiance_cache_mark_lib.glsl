@@ -1,3 +1,4 @@
+#include "radiance_cache_layout_lib.glsl"
 /* Lumen GI: marking radiance-cache cells as used (needs radiance_cache_layout_lib.glsl and the
  * R32F image rc_marks): the passes whose rays hand over to the cache (screen_probe_trace,
  * screen_probe_integrate's fallback rays) mark the 8 cells around the rays' origin, so that

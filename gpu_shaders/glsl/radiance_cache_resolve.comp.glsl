@@ -1,3 +1,9 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "gi_trace_lib.glsl"
+#include "radiance_cache_layout_lib.glsl"
+#include "radiance_cache_lib.glsl"
+#include "screen_probe_ray_lib.glsl"
 /* Radiance cache, per screen-probe texel: a ray that screen_probe_trace stopped at
  * rc_trace_distance without a hit (alpha -2) takes its far field from the cache (rc_lookup: 8
  * probes, sphere parallax, visibility); where no probe serves it, it traces on from there to

@@ -1,3 +1,4 @@
+#include "radiance_cache_layout_lib.glsl"
 /* Radiance cache, per probe slot: this frame's trace list under the budget rc_cap (entries
  * appended with rc_counter[2]). Phase 0: the probes never traced (new first); phase 1: traced
  * probes in the round-robin window [rc_cursor, rc_cursor + rc_window) of slots, while the list

@@ -1,3 +1,7 @@
+#include "surface_cache_lib.glsl"
+#include "octahedral_lib.glsl"
+#include "gi_trace_lib.glsl"
+#include "radiance_cache_layout_lib.glsl"
 /* Radiance cache, tracing: per listed probe and octahedral texel, RC_SUB^2 stratified rays
  * (jittered in the texel by rc_jitter, a new offset every trace) from the probe's centre, full
  * length (t_max) through gi_trace_lib.glsl (mesh SDFs, global SDF, voxel lighting / surface

@@ -1,3 +1,6 @@
+#include "gbuffer_lib.glsl"
+#include "radiance_cache_layout_lib.glsl"
+#include "radiance_cache_lib.glsl"
 /* The world radiance cache seen from the camera (the RADIANCE_CACHE debug view): per G-buffer
  * pixel, what the cache gives a ray leaving the surface along its normal (rc_lookup at a point
  * 1 cm off the surface: its 8 probes, parallax, visibility), from the finest level holding it.

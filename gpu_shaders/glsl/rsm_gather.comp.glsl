@@ -1,3 +1,5 @@
+#include "gbuffer_lib.glsl"
+#include "sampling_lib.glsl"
 /* RSM one-bounce gather (rsm.py; lecture 21, "Reflective Shadow Maps", "Cone Tracing with RSM"):
  * the irradiance at pixel x (normal n) from one light's RSM texels, each a small Lambertian area
  * light of flux Phi_p at x_p with normal n_p:

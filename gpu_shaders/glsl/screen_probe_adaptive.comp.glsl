@@ -1,3 +1,4 @@
+#include "probe_interp_lib.glsl"
 /* Screen probes, adaptive placement (lecture: "Screen Probe Placement: adaptive placement with
  * hierarchical refinement, iteratively place where interpolation fails" and "Screen Probe Atlas:
  * adaptive probes at the bottom of the atlas"). Per tile of 8x8 pixels (level 1), then 4x4

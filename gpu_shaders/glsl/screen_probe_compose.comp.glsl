@@ -1,3 +1,4 @@
+#include "octahedral_lib.glsl"
 /* Screen probes, the texel atlas from importance-sampled rays (screen_probe_rays): per
  * octahedral texel, an unbiased estimate of its radiance from the ray slots that traced it.
  *   one ray (kind 0)      its own slot, as without importance sampling;

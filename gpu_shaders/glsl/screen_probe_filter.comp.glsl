@@ -1,3 +1,4 @@
+#include "octahedral_lib.glsl"
 /* Screen probes, spatial filter (lecture: "Denoise: Spatial filtering for Probe"): each probe
  * texel averages the same direction's texel of the 3x3 neighbouring probes (a tile each, 16 or
  * 8 px: GISettings.probe_tile_for; a 3x3-tile filter for the price of 9 reads), weighted by

@@ -1,3 +1,13 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "surface_cache_lib.glsl"
+#include "gbuffer_lib.glsl"
+#include "sampling_lib.glsl"
+#include "sh_lib.glsl"
+#include "probe_interp_lib.glsl"
+#include "radiance_cache_layout_lib.glsl"
+#include "radiance_cache_trace_lib.glsl"
+#include "radiance_cache_mark_lib.glsl"
 /* Screen probes, per-pixel integration (lecture: "Final integration with SH" and "Plane distance
  * weighting of Probe Interpolation"): the 4 probes around the pixel (tile centres as the bilinear
  * grid), weighted by probe_corner_weights (bilinear x plane distance), probes that a wall hides

@@ -1,3 +1,5 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
 /* Screen probes, which neighbours a probe can see (for screen_probe_filter): per probe, bit k of
  * the 3x3 neighbourhood (k = (dy + 1) * 3 + (dx + 1), the centre left out) is set when that
  * neighbour is a probe and no wall stands between the two (sdf_ray_lib.glsl's gi_visible, the

@@ -1,3 +1,4 @@
+#include "octahedral_lib.glsl"
 /* Lumen GI: the direction of a screen-probe ray slot (importance sampling, screen_probe_rays).
  *
  *   vec3 screen_probe_ray_dir(ivec2 tx, int probe_res, vec2 jitter)

@@ -1,3 +1,5 @@
+#include "sampling_lib.glsl"
+#include "octahedral_lib.glsl"
 /* Screen probes, importance sampling (lecture: "Importance Sampling" through "Fix Budget
  * Importance Sampling based on Lighting and BRDF"): which direction each of a probe's res^2 ray
  * slots traces this frame. One work group is one probe (res = 8 = the group size), its

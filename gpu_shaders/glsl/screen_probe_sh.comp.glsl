@@ -1,3 +1,5 @@
+#include "octahedral_lib.glsl"
+#include "sh_lib.glsl"
 /* Screen probes to spherical harmonics (lecture: "Convert Probe Radiance to 3rd order SH"): per
  * probe, c_k = sum over its octahedral texels of L * Y_k(dir) * texel solid angle (exact solid
  * angles, octahedral_lib.glsl), dir the direction actually traced (ray_jitter). The probe's

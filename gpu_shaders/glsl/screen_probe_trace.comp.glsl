@@ -1,3 +1,9 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "radiance_cache_layout_lib.glsl"
+#include "radiance_cache_mark_lib.glsl"
+#include "screen_probe_ray_lib.glsl"
+#include "lumen_trace_lib.glsl"
 /* Screen probes, tracing: one ray per octahedral texel of every probe (probe_res^2 per probe,
  * the whole sphere in world-space directions so that neighbours' texels match), through
  * lumen_trace_lib.glsl (the screen first if on, mesh SDFs near, global SDF far, the surface

@@ -1,3 +1,5 @@
+#include "gbuffer_lib.glsl"
+#include "mip_lib.glsl"
 /* Screen-space rays on the HZB (lecture 21, "Hierachical Tracing"; needs mip_lib.glsl,
  * gbuffer_lib.glsl and the samplers hzb (MIN chain of window depths, hzb.py), gbuf_position,
  * gbuf_normal). Used by SSGI's trace and by Lumen's first trace (screen probes).

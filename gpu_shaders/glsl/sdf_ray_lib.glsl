@@ -1,3 +1,4 @@
+#include "sdf_lib.glsl"
 /* Lumen GI: short mesh-SDF rays (needs sdf_lib.glsl): the thin-wall hit rule, object voxels and
  * the visibility test of probe interpolation. Used by gi_trace_lib.glsl and the passes that only
  * need to know whether a wall lies between two points.

@@ -1,3 +1,5 @@
+#include "sdf_lib.glsl"
+#include "camera_lib.glsl"
 /* Lumen GI: one sphere-traced ray per pixel through the scene SDF (needs sdf_lib.glsl).
  *
  * Push constants: inv_view_proj (NDC -> world), t_max (metres along the ray), max_steps.

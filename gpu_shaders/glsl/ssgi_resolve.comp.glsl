@@ -1,3 +1,5 @@
+#include "gbuffer_lib.glsl"
+#include "mip_lib.glsl"
 /* SSGI resolve (ssgi.py; lecture 21, "Ray Reuse among Neighbor Pixels", "Cone Tracing with
  * Mipmap Filtering"): per pixel x (normal n), the rays of every pixel q in a (2 reuse + 1)^2
  * window that lies on x's surface (normals within ~37 degrees, q within 2% of x's distance of

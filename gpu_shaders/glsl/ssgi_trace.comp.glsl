@@ -1,3 +1,6 @@
+#include "gbuffer_lib.glsl"
+#include "sampling_lib.glsl"
+#include "screen_trace_lib.glsl"
 /* SSGI trace (ssgi.py; lecture 21, "Radiance Sampling in Screen Space", "Hierachical Tracing"):
  * `rays` rays per G-buffer pixel in the cosine hemisphere of its normal (stratified Hammersley
  * points, rotated per pixel and frame), each walked through the HZB by screen_trace_lib.glsl

@@ -1,3 +1,4 @@
+#include "surface_cache_texel_lib.glsl"
 /* Surface cache final lighting (the lecture's "Combine Lighting"), per lighting-atlas texel:
  *   final = (E_direct + E_indirect) * albedo / pi + emissive      (radiance, Lambert)
  * Inputs: sc_direct, sc_indirect (irradiance, rgb), the card layers. Output out_image: final.rgb,

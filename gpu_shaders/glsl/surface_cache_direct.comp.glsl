@@ -1,3 +1,8 @@
+#include "sdf_ray_lib.glsl"
+#include "surface_cache_lib.glsl"
+#include "light_lib.glsl"
+#include "surface_cache_pages_lib.glsl"
+#include "surface_cache_texel_lib.glsl"
 /* Surface cache direct light: per lighting-atlas texel, the irradiance E from every light with SDF
  * cone-traced shadows (light_lib.glsl), at the texel's surface point in world space.
  * Inputs: texel_card (card row per texel, -1 none), the card tables and layers, lights,

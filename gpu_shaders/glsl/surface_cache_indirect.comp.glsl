@@ -1,3 +1,8 @@
+#include "sdf_ray_lib.glsl"
+#include "sh_lib.glsl"
+#include "surface_cache_pages_lib.glsl"
+#include "surface_cache_texel_lib.glsl"
+#include "surface_cache_probe_lib.glsl"
 /* Surface cache indirect light, step 3: per lighting-atlas texel, the irradiance of the 2x2 probes
  * around it (bilinear between probe centres, probes on the same card only; its own block's probe
  * when none), E = E0 + sh4_irradiance(c, n) - sh4_irradiance(c, n_probe): the probe's exact

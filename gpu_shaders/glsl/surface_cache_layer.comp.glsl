@@ -1,3 +1,4 @@
+#include "surface_cache_texel_lib.glsl"
 /* Surface cache layer view: one value per lighting-atlas texel, for the debug views and tests.
  * layer_mode: 0 albedo, 1 world normal * 0.5 + 0.5, 2 direct E / pi, 3 indirect E / pi,
  * 4 world position, 5 a colour per card row, 6 final radiance, 7 update heat: frames since the

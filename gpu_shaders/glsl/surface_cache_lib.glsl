@@ -1,3 +1,5 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
 /* Lumen GI: the surface cache (mesh cards) on the GPU (needs sdf_lib.glsl, sdf_ray_lib.glsl).
  *
  * Resources (declared by surface_cache.SurfaceCache.declare, layout in card_packing.py):

@@ -1,3 +1,8 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "surface_cache_lib.glsl"
+#include "sampling_lib.glsl"
+#include "surface_cache_pages_lib.glsl"
 /* Lumen GI: surface-cache radiosity probes (lecture: "Indirect Lighting": 2x2 probes per 8x8 tile,
  * each probe covering 4x4 texels, 16 rays, jittered placement and directions).
  * Needs sdf_lib.glsl, sdf_ray_lib.glsl, surface_cache_lib.glsl, sampling_lib.glsl; texel_card.

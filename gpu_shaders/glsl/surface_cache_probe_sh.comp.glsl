@@ -1,3 +1,7 @@
+#include "sdf_ray_lib.glsl"
+#include "sh_lib.glsl"
+#include "surface_cache_pages_lib.glsl"
+#include "surface_cache_probe_lib.glsl"
 /* Surface cache indirect light, step 2: spatial filter + two-band SH (lecture: "Spatial filtering
  * between probes, convert to TwoBandSH"). Per probe, the rays of the 3x3 neighbouring probes on
  * the same card whose normals agree (cos > 0.9) and that no wall hides (gi_visible: the two sides of

@@ -1,3 +1,7 @@
+#include "sdf_ray_lib.glsl"
+#include "gi_trace_lib.glsl"
+#include "surface_cache_pages_lib.glsl"
+#include "surface_cache_probe_lib.glsl"
 /* Surface cache indirect light, step 1: trace. One invocation per probe ray: texel (x, y) of the
  * ray atlas is ray (x % 4) + 4 (y % 4) of probe (x / 4, y / 4) (surface_cache_probe_lib.glsl).
  * Each ray goes through gi_trace_lib.glsl from one voxel off the probe's surface and returns the

@@ -1,3 +1,4 @@
+#include "surface_cache_lib.glsl"
 /* Lumen GI: the lighting-atlas texel a surface-cache pass runs on (needs surface_cache_lib.glsl
  * and the texel_card sampler every such pass declares, surface_cache.pass_shader).
  * sc_lighting_texel: texel px's card row, object, the surface in the object's local space and in

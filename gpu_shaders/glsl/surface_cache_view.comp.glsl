@@ -1,3 +1,7 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "surface_cache_lib.glsl"
+#include "gbuffer_lib.glsl"
 /* Surface cache seen from the camera (debug views and tests): per G-buffer pixel, the object whose
  * SDF is nearest to the pixel's world point, the pixel's normal in that object's local space, and
  * sc_sample_local of whatever lighting-atlas texture is bound as sc_final (final light, or a

@@ -1,3 +1,6 @@
+#include "sdf_lib.glsl"
+#include "global_sdf_lib.glsl"
+#include "voxel_lighting_layout_lib.glsl"
 /* Voxel lighting, step 1 (a light pass: llvmpipe runs every invocation of a shader through all of
  * its code, so step 2's heavy shader must only see the voxels that need it). One invocation per
  * tile of 4x4x4 voxels of one clipmap level: thread (x, y) is tile (x, y % T, y / T), T = N / 4,

@@ -1,3 +1,8 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
+#include "global_sdf_lib.glsl"
+#include "surface_cache_lib.glsl"
+#include "voxel_lighting_layout_lib.glsl"
 /* Voxel lighting, step 2: the 6 faces of the voxels step 1 listed (near a surface, not inside a
  * solid), from short mesh-SDF rays and the surface cache (what a face holds:
  * voxel_lighting_layout_lib.glsl). The lecture's "build voxel faces by short ray cast" shoots

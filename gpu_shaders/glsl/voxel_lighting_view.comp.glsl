@@ -1,3 +1,6 @@
+#include "global_sdf_lib.glsl"
+#include "gbuffer_lib.glsl"
+#include "voxel_lighting_lib.glsl"
 /* Voxel lighting seen from the camera (the VOXEL_LIGHTING debug view): per G-buffer pixel, what a
  * global-SDF hit there would read (vl_sample along the camera ray with the G-buffer normal, at the
  * point where such a hit stops: within the thin-wall margin off the surface), from the finest

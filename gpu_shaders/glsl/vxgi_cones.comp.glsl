@@ -1,3 +1,8 @@
+#include "global_sdf_lib.glsl"
+#include "sky_lib.glsl"
+#include "gbuffer_lib.glsl"
+#include "sampling_lib.glsl"
+#include "voxel_lighting_lib.glsl"
 /* VXGI: voxel cone tracing over the voxel lighting clipmaps (lecture 21, "Shading with Cone
  * Tracing", "Accumulate Voxel Radiance and Opacity along the Path"). Per G-buffer pixel, `cones`
  * cones of half-angle h in the normal's hemisphere: one along the normal, the rest on a ring at

@@ -39,7 +39,7 @@ from lumen_gi.gpu_shaders import compute
 from lumen_gi.gpu_shaders.resources import SceneResources, float_buffer, glsl
 from lumen_gi.gpu_shaders.surface_cache import SurfaceCache
 from lumen_gi.gpu_shaders.global_sdf import GlobalSDF
-from lumen_gi.gpu_shaders.voxel_lighting import VoxelLighting, LIBS
+from lumen_gi.gpu_shaders.voxel_lighting import VoxelLighting
 from lumen_gi.gpu_shaders.sky_light import SkyLight
 from lumen_gi.lumen_addon import sky as sky_maps
 import gpu
@@ -147,7 +147,7 @@ def job():
     slot = GlobalSDF.declare(info, 2)
     info.sampler(slot, 'FLOAT_2D', 'vl_radiance')
     info.image(0, 'RGBA32F', 'FLOAT_2D', 'out_image', qualifiers={{'WRITE'}})
-    sh = compute.create(info, glsl("global_sdf_lib.glsl") + "".join(glsl(l) for l in LIBS) + SAMPLE)
+    sh = compute.create(info, glsl("voxel_lighting_lib.glsl") + SAMPLE)
     def tex(a):
         rgba = np.zeros((len(a), 4), np.float32)
         rgba[:, :3] = a
@@ -239,9 +239,7 @@ def radiance_shader():
     info.image(0, 'RGBA32F', 'FLOAT_2D', 'out_image', qualifiers={'WRITE'})
     info.push_constant('MAT4', 'inv_view_proj')
     info.push_constant('FLOAT', 't_max')
-    libs = ("sdf_lib.glsl", "sdf_ray_lib.glsl", "global_sdf_lib.glsl", "surface_cache_lib.glsl",
-            "sky_lib.glsl", "camera_lib.glsl") + LIBS + ("gi_trace_lib.glsl",)
-    return compute.create(info, "".join(glsl(l) + chr(10) for l in libs) + RADIANCE)
+    return compute.create(info, glsl(("camera_lib.glsl", "gi_trace_lib.glsl")) + chr(10) + RADIANCE)
 
 def served():
     bake, _ = lumen_engine.scene_bake(bpy.context.scene)
