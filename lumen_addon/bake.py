@@ -21,7 +21,7 @@ from .geometry import MeshError, clean_mesh, orient_triangles
 from .sdf import DEFAULT_MAX_RESOLUTION, BakeCancelled, MeshSDF, bake_mesh_sdf, plan_resolution
 from .sign import INSIDE_FRACTION
 
-ALGORITHM_VERSION = 7   # bump when a change makes old bakes differ from new ones
+ALGORITHM_VERSION = 8   # bump when a change makes old bakes differ from new ones
 SDF_SHARE = 0.7         # of the progress bar; the cards take the rest
 
 

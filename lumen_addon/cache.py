@@ -108,6 +108,7 @@ def _write_locked(folder: Path, bake: SceneBake) -> Path:
                        "origin": sdf.origin.tolist(), "bounds_min": sdf.bounds_min.tolist(),
                        "bounds_max": sdf.bounds_max.tolist(), "two_sided": sdf.two_sided,
                        "requested_resolution": list(sdf.requested_resolution), "mips": mips,
+                       "edge_voxels": [None if x is None else float(x) for x in sdf.edge_voxels],
                        "stats": sdf.stats()})
     buf = io.BytesIO()
     np.savez(buf, **arrays)
@@ -513,7 +514,7 @@ def _mesh(v: _Values, m, i: int):
     """(hash, MeshSDF without arrays, [(array name, dtype, shape)] of its mips) of meshes[i]."""
     where = f"meshes[{i}]"
     v.dict(m, where, ("hash", "objects", "origin", "bounds_min", "bounds_max", "two_sided",
-                      "requested_resolution", "mips", "stats"))
+                      "requested_resolution", "mips", "stats", "edge_voxels"))
     key = v.key(m["hash"], f"{where}.hash")
     v.list(m["objects"], f"{where}.objects", 1)
     origin = v.vec(m["origin"], f"{where}.origin", 3)
@@ -558,8 +559,12 @@ def _mesh(v: _Values, m, i: int):
     if (bmin > bmax).any() or (bmin < origin - tol).any() or (bmax > top + tol).any():
         v.fail(where, f"bounds {bmin.tolist()}..{bmax.tolist()} are not inside its SDF volume "
                       f"{origin.tolist()}..{top.tolist()}")
+    # per mip: the field's rounding of convex edges (sdf.edge_rounding), null where unmeasured
+    v.list(m["edge_voxels"], f"{where}.edge_voxels", MIP_COUNT, MIP_COUNT)
+    edge = [None if x is None else v.num(x, f"{where}.edge_voxels[{j}]", 0.0, 1.0)
+            for j, x in enumerate(m["edge_voxels"])]
     sdf = MeshSDF(origin=origin, bounds_min=bmin, bounds_max=bmax, two_sided=two_sided, mips=mips,
-                  requested_resolution=requested)
+                  requested_resolution=requested, edge_voxels=edge)
     return key, sdf, arrays
 
 
