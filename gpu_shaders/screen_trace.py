@@ -11,9 +11,16 @@ resolve goes on to the mesh SDFs (to 1.8 m), the global SDF and the sky:
                         colour and traces on the SDFs alone: a surface-cache lookup per pixel
                         instead was measured at 1.2 s a pass at 128x128, 3x what the screen
                         saved the probe trace
-    screen_trace_lib    per ray: a hit on screen ends the ray there; otherwise the SDF trace
-                        starts where the depth buffer stops vouching that the ray is empty
-                        (t_free), not at the ray's origin: the saving on rays that leave the screen
+    screen_trace_lib    per ray: a hit on screen ends the ray there, reading the screen colour
+                        averaged over the ray's cone on the hit's own surface (screen_cone: a
+                        probe texel's solid angle, 3x3 edge-aware taps: one pixel of one gather
+                        was as noisy as that gather); a ray that passes behind what a pixel
+                        shows without hitting it ends there (SCREEN_BEHIND: what is behind is
+                        unknown; walking on found surfaces past a thin wall's edge, `thin`
+                        leaked 1.98%, and spent the 50 steps a pixel at a time); otherwise the
+                        SDF trace starts where the depth buffer stops vouching that the ray is
+                        empty (t_free), not at the ray's origin: the saving on rays that leave
+                        the screen
 
 Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step evaluates every
 object near the point; the screen resolves rays that hit what the camera sees (most of a room's

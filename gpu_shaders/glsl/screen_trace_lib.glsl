@@ -153,3 +153,54 @@ float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, 
   }
   return s >= s_end ? SCREEN_LEFT : SCREEN_STEPS;
 }
+
+/* The colour (a lit image: Lumen's screen colour) a hit at y (distance t, on pixel px's surface)
+ * reads: the mean over the ray's footprint, edge-aware. The cone of half-angle atan(cone_tan)
+ * the ray stands for (Lumen: a probe texel's solid angle) is projected at y (camera at cam);
+ * 3x3 taps spaced over its radius (1 to SCREEN_CONE_MAX_PX pixels apart) are averaged where the tap's surface is y's (its plane passes
+ * within 2 cm + 10% of the tap's distance of y, its normal within ~45 degrees).
+ * Why: one pixel of the screen colour carries the noise of one gather's per-pixel light (F12:
+ * the last gather's), and a ray stands for its cone's mean, which the SDF path's surface cache
+ * (texels a few cm across, read at jittered directions) gives with less noise. Edge-aware and
+ * not the mip chain's cone filter: a mip texel averages whatever the screen shows around y
+ * (a black floor under an emitting wall read the wall 8% darker, test_screen_trace). */
+#define SCREEN_CONE_MAX_PX 4.0
+vec3 screen_cone(sampler2D colour, mat4 vp, vec3 cam, float cone_tan, vec3 y, float t, ivec2 px)
+{
+  ivec2 size = textureSize(gbuf_position, 0);
+  vec3 view = normalize(y - cam);
+  vec3 across = normalize(cross(view, abs(view.z) < 0.9 ? vec3(0.0, 0.0, 1.0) :
+                                                          vec3(1.0, 0.0, 0.0)));
+  vec3 c = screen_window(vp * vec4(y, 1.0), vec2(size));
+  vec3 c2 = screen_window(vp * vec4(y + across * (t * cone_tan), 1.0), vec2(size));
+  float spacing = min(length(c2.xy - c.xy), SCREEN_CONE_MAX_PX);
+  vec3 sum = texelFetch(colour, px, 0).rgb;
+  if (spacing < 1.0) {
+    return sum;                   /* the cone within a pixel */
+  }
+  vec3 n0 = texelFetch(gbuf_normal, px, 0).xyz;
+  float wsum = 1.0;
+  for (int j = -1; j <= 1; j++) {
+    for (int i = -1; i <= 1; i++) {
+      if (i == 0 && j == 0) {
+        continue;
+      }
+      ivec2 q = ivec2(floor(vec2(px) + 0.5 + vec2(i, j) * spacing));
+      if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) {
+        continue;
+      }
+      vec4 pq = texelFetch(gbuf_position, q, 0);
+      vec3 nq = texelFetch(gbuf_normal, q, 0).xyz;
+      if (pq.w < 0.5 || abs(dot(nq, n0)) < 0.7) {
+        continue;
+      }
+      vec3 d = pq.xyz - y;
+      if (abs(dot(d, normalize(nq))) > 0.02 + 0.1 * length(d)) {
+        continue;
+      }
+      sum += texelFetch(colour, q, 0).rgb;
+      wsum += 1.0;
+    }
+  }
+  return sum / wsum;
+}
