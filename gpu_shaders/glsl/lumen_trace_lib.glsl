@@ -1,7 +1,8 @@
 /* Lumen's ray (lecture 21, "Speed of Different Tracing Methods"; needs gi_trace_lib.glsl,
  * screen_trace_lib.glsl and screen_trace.py's SAMPLERS and PUSH): the screen first (HZB, at
- * most screen_steps cells; a hit reads screen_colour, filtered over the ray's cone), then from where the depth buffer stops
- * vouching for the ray (t_free) the mesh SDFs, the global SDF and the sky (gi_radiance_from).
+ * most screen_steps cells; a hit reads screen_colour, filtered over the ray's cone:
+ * screen_cone), then from where the depth buffer stops vouching for the ray (t_free) the mesh
+ * SDFs, the global SDF and the sky (gi_radiance_from).
  * screen_steps 0: the SDFs from the origin.
  * Objects hidden from the camera (screen_hidden: their object-table rows, -1 for none) are not in
  * the depth buffer, which therefore vouches for space they fill: before a screen result is used,

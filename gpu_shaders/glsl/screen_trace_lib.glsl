@@ -157,8 +157,9 @@ float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, 
 /* The colour (a lit image: Lumen's screen colour) a hit at y (distance t, on pixel px's surface)
  * reads: the mean over the ray's footprint, edge-aware. The cone of half-angle atan(cone_tan)
  * the ray stands for (Lumen: a probe texel's solid angle) is projected at y (camera at cam);
- * 3x3 taps spaced over its radius (1 to SCREEN_CONE_MAX_PX pixels apart) are averaged where the tap's surface is y's (its plane passes
- * within 2 cm + 10% of the tap's distance of y, its normal within ~45 degrees).
+ * 3x3 taps spaced over its radius (1 to SCREEN_CONE_MAX_PX pixels apart) are averaged where
+ * the tap's surface is y's (its plane passes within 2 cm + 10% of the tap's distance of y,
+ * its normal within ~45 degrees).
  * Why: one pixel of the screen colour carries the noise of one gather's per-pixel light (F12:
  * the last gather's), and a ray stands for its cone's mean, which the SDF path's surface cache
  * (texels a few cm across, read at jittered directions) gives with less noise. Edge-aware and
