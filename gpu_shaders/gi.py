@@ -125,7 +125,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
             and view_proj is not None:
         from .screen_trace import ScreenTrace
         screen = ScreenTrace(gbuf, view_proj, cam_pos, width, height, gi.screen_steps,
-                             gi.screen_thickness, hidden=state.hidden_rows())
+                             gi.screen_thickness, hidden=state.hidden_rows(),
+                             rays=probes.res ** 2)
     state.screen_trace = screen
     if final:
         schedule = gi.render_schedule()

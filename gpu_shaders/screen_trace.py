@@ -11,9 +11,16 @@ resolve goes on to the mesh SDFs (to 1.8 m), the global SDF and the sky:
                         colour and traces on the SDFs alone: a surface-cache lookup per pixel
                         instead was measured at 1.2 s a pass at 128x128, 3x what the screen
                         saved the probe trace
-    screen_trace_lib    per ray: a hit on screen ends the ray there; otherwise the SDF trace
-                        starts where the depth buffer stops vouching that the ray is empty
-                        (t_free), not at the ray's origin: the saving on rays that leave the screen
+    screen_trace_lib    per ray: a hit on screen ends the ray there, reading the screen colour
+                        averaged over the ray's cone on the hit's own surface (screen_cone: a
+                        probe texel's solid angle, 3x3 edge-aware taps: one pixel of one gather
+                        was as noisy as that gather); a ray that passes behind what a pixel
+                        shows without hitting it ends there (SCREEN_BEHIND: what is behind is
+                        unknown; walking on found surfaces past a thin wall's edge, `thin`
+                        leaked 1.98%, and spent the 50 steps a pixel at a time); otherwise the
+                        SDF trace starts where the depth buffer stops vouching that the ray is
+                        empty (t_free), not at the ray's origin: the saving on rays that leave
+                        the screen
 
 Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step evaluates every
 object near the point; the screen resolves rays that hit what the camera sees (most of a room's
@@ -53,10 +60,10 @@ class ScreenTrace:
     iterations of one frame; rebuilt per frame)."""
 
     def __init__(self, gbuf: dict, view_proj, cam_pos, width: int, height: int, steps: int = 50,
-                 thickness: float = 0.1, hidden=()):
+                 thickness: float = 0.1, hidden=(), rays: int = 64):
         self.gbuf, self.width, self.height = gbuf, int(width), int(height)
         self.view_proj = np.asarray(view_proj, np.float64)
-        self.camera = camera_texture(view_proj)
+        self.camera = camera_texture(view_proj, ray_cone_tan(rays))
         self.cam = compute.vec(cam_pos) + [float(thickness)]
         self.steps = int(steps)
         self.hzb = hzb.depth_pyramid(gbuf, view_proj, width, height)
@@ -98,17 +105,27 @@ class ScreenTrace:
         """GPU bytes: HZB atlas (R32F) and the screen colour (RGBA32F)."""
         out = {"screen_hzb": self.hzb.width * self.hzb.height * 4}
         if self.colour is not None:
-            out["screen_colour"] = self.width * self.height * 16
+            out["screen_colour"] = self.colour.width * self.colour.height * 16
         return out
 
 
-def camera_texture(view_proj):
-    """view_proj as a 4x1 RGBA32F texture, texel k its column k (GLSL's mat4(c0, c1, c2, c3))."""
+def camera_texture(view_proj, cone_tan: float = 0.0):
+    """view_proj as a 5x1 RGBA32F texture, texel k < 4 its column k (GLSL's mat4(c0, c1, c2,
+    c3)), texel 4 x the tangent of the cone a ray stands for (its screen-colour footprint)."""
     import gpu
 
     from .resources import float_buffer
-    cols = np.ascontiguousarray(np.asarray(view_proj, np.float32).T)     # row k = column k
-    return gpu.types.GPUTexture((4, 1), format='RGBA32F', data=float_buffer(cols.reshape(1, 4, 4)))
+    cols = np.zeros((5, 4), np.float32)
+    cols[:4] = np.asarray(view_proj, np.float32).T     # row k = column k
+    cols[4, 0] = cone_tan
+    return gpu.types.GPUTexture((5, 1), format='RGBA32F', data=float_buffer(cols.reshape(1, 5, 4)))
+
+
+def ray_cone_tan(rays: int) -> float:
+    """The tangent of the half-angle of a cone holding 1 / rays of the sphere (a probe's
+    octahedral texel: rays = probe_res^2): 2 pi (1 - cos a) = 4 pi / rays."""
+    c = 1.0 - 2.0 / max(float(rays), 2.0)
+    return float(np.sqrt(max(1.0 - c * c, 0.0)) / max(c, 1e-6))
 
 
 def hidden_texture(rows):

@@ -4,8 +4,9 @@
 #include "screen_trace_lib.glsl"
 /* Lumen's ray (lecture 21, "Speed of Different Tracing Methods"; needs gi_trace_lib.glsl,
  * screen_trace_lib.glsl and screen_trace.py's SAMPLERS and PUSH): the screen first (HZB, at
- * most screen_steps cells; a hit reads screen_colour), then from where the depth buffer stops
- * vouching for the ray (t_free) the mesh SDFs, the global SDF and the sky (gi_radiance_from).
+ * most screen_steps cells; a hit reads screen_colour, filtered over the ray's cone:
+ * screen_cone), then from where the depth buffer stops vouching for the ray (t_free) the mesh
+ * SDFs, the global SDF and the sky (gi_radiance_from).
  * screen_steps 0: the SDFs from the origin.
  * Objects hidden from the camera (screen_hidden: their object-table rows, -1 for none) are not in
  * the depth buffer, which therefore vouches for space they fill: before a screen result is used,
@@ -56,7 +57,7 @@ vec3 lumen_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out int kind)
     float t_free;
     ivec2 hit_px;
     float ts = screen_trace(screen_view_proj(), screen_cam.xyz, o, dir, tmax, screen_steps,
-                            screen_cam.w, t_free, hit_px);
+                            screen_cam.w, true, t_free, hit_px);
     float guard = screen_hidden_guard(o, dir, ts >= 0.0 ? ts : t_free);
     if (guard < (ts >= 0.0 ? ts : t_free)) {     /* a hidden object first: the SDFs from there */
       ts = -1.0;
@@ -65,7 +66,8 @@ vec3 lumen_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out int kind)
     if (ts >= 0.0) {
       hit_t = ts;
       kind = LUMEN_SCREEN;
-      return texelFetch(screen_colour, hit_px, 0).rgb;
+      return screen_cone(screen_colour, screen_view_proj(), screen_cam.xyz,
+                         texelFetch(screen_camera, ivec2(4, 0), 0).x, o + dir * ts, ts, hit_px);
     }
     t_start = t_free;
   }

@@ -16,8 +16,14 @@
  *   pixel spans a long stretch of its surface.)
  * At most max_steps cells are visited (the lecture: 50). The world ray is clipped to the near and
  * far planes, its screen line to the image.
+ * stop_behind (Lumen's first trace, which has a world trace to go on with): a ray that passes
+ * behind a pixel's surface without hitting it ends there (SCREEN_BEHIND) instead of walking on
+ * behind it: what lies behind is unknown to the screen (the walk found surfaces beyond a thin
+ * wall's edge: `thin` leaked 1.98% against the SDFs' 0.21%), and the walk behind an occluder,
+ * one pixel per step, spent the step budget for a result the SDFs then recomputed. SSGI, which
+ * has no world trace, walks on (stop_behind false).
  * Returns the hit distance (>= 0; hit_px the pixel hit) or SCREEN_LEFT (left the screen, reached
- * t_max or the far plane) or SCREEN_STEPS (out of steps).
+ * t_max or the far plane) or SCREEN_STEPS (out of steps) or SCREEN_BEHIND.
  * t_free: how far the ray is known to be empty, from the depth buffer alone: every cell it crossed
  * from its start up to there it crossed in front of the nearest surface the cell shows (what the
  * camera sees in front of a surface is empty). A world-space tracer can go on from there without
@@ -25,6 +31,7 @@
  */
 #define SCREEN_LEFT -1.0
 #define SCREEN_STEPS -2.0
+#define SCREEN_BEHIND -3.0
 
 vec3 screen_window(vec4 h, vec2 size)
 {
@@ -33,7 +40,7 @@ vec3 screen_window(vec4 h, vec2 size)
 }
 
 float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, int max_steps,
-                   float thickness, out float t_free, out ivec2 hit_px)
+                   float thickness, bool stop_behind, out float t_free, out ivec2 hit_px)
 {
   t_free = 0.0;
   hit_px = ivec2(-1);
@@ -133,6 +140,12 @@ float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, 
         hit_px = cell;
         return ta;
       }
+      if (stop_behind && (da < 0.0 || db < 0.0)) {
+        /* behind what the pixel shows and no hit: the screen cannot tell what the ray meets
+         * there (an occluder's hidden part, a thin wall's back): a world trace goes on from
+         * t_free rather than the walk finding a surface farther on that may lie beyond it */
+        return SCREEN_BEHIND;
+      }
       free_so_far = free_so_far && da >= 0.0 && db >= 0.0;
     }
     if (free_so_far) {
@@ -141,4 +154,56 @@ float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, 
     s = s_exit + eps;
   }
   return s >= s_end ? SCREEN_LEFT : SCREEN_STEPS;
+}
+
+/* The colour (a lit image: Lumen's screen colour) a hit at y (distance t, on pixel px's surface)
+ * reads: the mean over the ray's footprint, edge-aware. The cone of half-angle atan(cone_tan)
+ * the ray stands for (Lumen: a probe texel's solid angle) is projected at y (camera at cam);
+ * 3x3 taps spaced over its radius (1 to SCREEN_CONE_MAX_PX pixels apart) are averaged where
+ * the tap's surface is y's (its plane passes within 2 cm + 10% of the tap's distance of y,
+ * its normal within ~45 degrees).
+ * Why: one pixel of the screen colour carries the noise of one gather's per-pixel light (F12:
+ * the last gather's), and a ray stands for its cone's mean, which the SDF path's surface cache
+ * (texels a few cm across, read at jittered directions) gives with less noise. Edge-aware and
+ * not the mip chain's cone filter: a mip texel averages whatever the screen shows around y
+ * (a black floor under an emitting wall read the wall 8% darker, test_screen_trace). */
+#define SCREEN_CONE_MAX_PX 4.0
+vec3 screen_cone(sampler2D colour, mat4 vp, vec3 cam, float cone_tan, vec3 y, float t, ivec2 px)
+{
+  ivec2 size = textureSize(gbuf_position, 0);
+  vec3 view = normalize(y - cam);
+  vec3 across = normalize(cross(view, abs(view.z) < 0.9 ? vec3(0.0, 0.0, 1.0) :
+                                                          vec3(1.0, 0.0, 0.0)));
+  vec3 c = screen_window(vp * vec4(y, 1.0), vec2(size));
+  vec3 c2 = screen_window(vp * vec4(y + across * (t * cone_tan), 1.0), vec2(size));
+  float spacing = min(length(c2.xy - c.xy), SCREEN_CONE_MAX_PX);
+  vec3 sum = texelFetch(colour, px, 0).rgb;
+  if (spacing < 1.0) {
+    return sum;                   /* the cone within a pixel */
+  }
+  vec3 n0 = texelFetch(gbuf_normal, px, 0).xyz;
+  float wsum = 1.0;
+  for (int j = -1; j <= 1; j++) {
+    for (int i = -1; i <= 1; i++) {
+      if (i == 0 && j == 0) {
+        continue;
+      }
+      ivec2 q = ivec2(floor(vec2(px) + 0.5 + vec2(i, j) * spacing));
+      if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) {
+        continue;
+      }
+      vec4 pq = texelFetch(gbuf_position, q, 0);
+      vec3 nq = texelFetch(gbuf_normal, q, 0).xyz;
+      if (pq.w < 0.5 || abs(dot(nq, n0)) < 0.7) {
+        continue;
+      }
+      vec3 d = pq.xyz - y;
+      if (abs(dot(d, normalize(nq))) > 0.02 + 0.1 * length(d)) {
+        continue;
+      }
+      sum += texelFetch(colour, q, 0).rgb;
+      wsum += 1.0;
+    }
+  }
+  return sum / wsum;
 }
