@@ -115,8 +115,7 @@ class RayTestEngine(bpy.types.RenderEngine):
             info.image(1, 'RGBA32F', 'FLOAT_2D', "colour_out", qualifiers={'WRITE'})
             info.push_constant('MAT4', "view_proj")
             info.push_constant('VEC4', "cam")
-            src = "\\n".join(glsl(n) for n in ("mip_lib.glsl", "gbuffer_lib.glsl",
-                                                "screen_trace_lib.glsl")) + SRC
+            src = glsl(("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl")) + SRC
             sh = compute.create(info, src)
             sh.uniform_sampler("gbuf_position", ptex)
             sh.uniform_sampler("gbuf_normal", ntex)
