@@ -69,10 +69,14 @@ bool sc_texel_surface(int row, ivec2 ij, out vec3 p, out vec3 n, out vec3 albedo
 /* Gradient normal of object obj's mesh SDF at local point p (central differences, e local m). */
 vec3 sdf_mesh_normal_local(int obj, vec3 p, float e)
 {
-  vec2 k = vec2(e, 0.0);
-  vec3 g = vec3(sdf_mesh_local(obj, p + k.xyy) - sdf_mesh_local(obj, p - k.xyy),
-                sdf_mesh_local(obj, p + k.yxy) - sdf_mesh_local(obj, p - k.yxy),
-                sdf_mesh_local(obj, p + k.yyx) - sdf_mesh_local(obj, p - k.yyx));
+  vec3 g = vec3(0.0);
+  for (int k = 0; k < 6; k++) {      /* one call site (see gi_scene_gradients) */
+    int axis = k >> 1;
+    float s = (k & 1) == 0 ? 1.0 : -1.0;
+    vec3 q = p;
+    q[axis] += s * e;
+    g[axis] += s * sdf_mesh_local(obj, q);
+  }
   float l = length(g);
   return l > 0.0 ? g / l : vec3(0.0, 0.0, 1.0);
 }
