@@ -8,7 +8,7 @@ import `gpu_shaders.packing` without Blender.
 
 
 _SHADER_CACHES = (("compute", "_SHADERS"), ("gbuffer", "_SHADER"),
-                  ("global_sdf", "_SHADERS"), ("resources", "_SHADERS"))
+                  ("global_sdf", "_SHADERS"), ("lpv", "_SHADERS"), ("resources", "_SHADERS"))
 
 
 def free_shaders():
