@@ -260,3 +260,38 @@ def draw_panels(classes, context=None) -> dict:
         cls.draw(type("P", (), {**methods, "layout": RecordingLayout(log)})(), context)
         drawn[cls.__name__] = log
     return drawn
+
+
+def run_in_gpu_context(job):
+    """Call job() inside a RenderEngine render() that holds Blender's GPU context (what the gpu
+    module's textures, compute shaders and read-backs need headless), on a 4x4 render of the
+    current scene with a camera; re-raise whatever job() raised, with its traceback."""
+    import traceback
+
+    errors = []
+
+    class GPUJobEngine(bpy.types.RenderEngine):
+        bl_idname = "LUMEN_TEST_GPU_JOB"
+        bl_label = "GPU job (tests)"
+        bl_use_gpu_context = True
+
+        def render(self, depsgraph):
+            try:
+                job()
+            except Exception:
+                errors.append(traceback.format_exc())
+            self.end_result(self.begin_result(0, 0, 4, 4))
+
+    bpy.utils.register_class(GPUJobEngine)
+    try:
+        scene = bpy.context.scene
+        if scene.camera is None:
+            cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+            scene.collection.objects.link(cam)
+            scene.camera = cam
+        scene.render.engine = GPUJobEngine.bl_idname
+        scene.render.resolution_x = scene.render.resolution_y = 4
+        bpy.ops.render.render()
+    finally:
+        bpy.utils.unregister_class(GPUJobEngine)
+    assert not errors, errors[0]

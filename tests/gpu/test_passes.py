@@ -11,11 +11,11 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 from blender_runner import run_python  # noqa: E402
 
 SNIPPET = """
-import importlib, traceback
+import importlib
 import mathutils
 from lumen_gi.gpu_shaders import compute
 
-OUT, ERRORS = {}, []
+OUT = {}
 BIG = '''
 #include "sampling_lib.glsl"
 void main()
@@ -85,26 +85,7 @@ def job():
                 passes[p.name] = dict(bytes=compute.push_bytes(p.push), block=p.block)
     OUT["passes"] = passes
 
-class PassTestEngine(bpy.types.RenderEngine):
-    bl_idname = "LUMEN_PASS_TEST"
-    bl_label = "Pass test"
-    bl_use_gpu_context = True
-    def render(self, depsgraph):
-        try:
-            job()
-        except Exception:
-            ERRORS.append(traceback.format_exc())
-        self.end_result(self.begin_result(0, 0, 4, 4))
-
-bpy.utils.register_class(PassTestEngine)
-scene = bpy.context.scene
-cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-scene.collection.objects.link(cam)
-scene.camera = cam
-scene.render.engine = "LUMEN_PASS_TEST"
-scene.render.resolution_x = scene.render.resolution_y = 4
-bpy.ops.render.render()
-assert not ERRORS, ERRORS[0]
+run_in_gpu_context(job)
 emit(**OUT)
 """
 

@@ -27,7 +27,6 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 from blender_runner import run_python  # noqa: E402
 
 SNIPPET = """
-import traceback
 import gpu
 from lumen_gi.gpu_shaders import compute, hzb
 from lumen_gi.gpu_shaders.resources import float_buffer, glsl
@@ -93,60 +92,43 @@ void main()
   imageStore(colour_out, ivec2(k, 0), vec4(c, 1.0));
 }
 '''
-ERRORS, OUT = [], {}
+OUT = {}
 
-class RayTestEngine(bpy.types.RenderEngine):
-    bl_idname = "LUMEN_SCREEN_RAY_TEST"
-    bl_label = "screen ray test"
-    bl_use_gpu_context = True
-    def render(self, depsgraph):
-        try:
-            tex = lambda a: gpu.types.GPUTexture((a.shape[1], a.shape[0]), format='RGBA32F',
-                                                 data=float_buffer(a))
-            ptex, ntex, ctex = tex(pos), tex(nrm), tex(col)
-            rtex, dtex = tex(R), tex(D)
-            gbuf = {"textures": {"position": ptex}}
-            h = hzb.depth_pyramid(gbuf, vp, W, H)
-            info = compute.new_info()
-            for slot, name in enumerate(("gbuf_position", "gbuf_normal", "hzb", "colour",
-                                         "rays", "dirs")):
-                info.sampler(slot, 'FLOAT_2D', name)
-            info.image(0, 'RGBA32F', 'FLOAT_2D', "out_image", qualifiers={'WRITE'})
-            info.image(1, 'RGBA32F', 'FLOAT_2D', "colour_out", qualifiers={'WRITE'})
-            info.push_constant('MAT4', "view_proj")
-            info.push_constant('VEC4', "cam")
-            src = glsl(("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl")) + SRC
-            sh = compute.create(info, src)
-            sh.uniform_sampler("gbuf_position", ptex)
-            sh.uniform_sampler("gbuf_normal", ntex)
-            sh.uniform_sampler("hzb", h)
-            sh.uniform_sampler("colour", ctex)
-            sh.uniform_sampler("rays", rtex)
-            sh.uniform_sampler("dirs", dtex)
-            import mathutils
-            sh.uniform_float("view_proj", mathutils.Matrix(vp.tolist()))
-            sh.uniform_float("cam", [0.0, 0.0, 0.0, 0.1])
-            out = compute.texture((len(rays), 1))
-            cout = compute.texture((len(rays), 1))
-            sh.image("out_image", out)
-            sh.image("colour_out", cout)
-            compute.dispatch(sh, len(rays), 1)
-            OUT["trace"] = compute.read(out)[0]
-            OUT["colour"] = compute.read(cout)[0]
-        except Exception:
-            ERRORS.append(traceback.format_exc())
-        r = self.begin_result(0, 0, 4, 4)
-        self.end_result(r)
+def job():
+    tex = lambda a: gpu.types.GPUTexture((a.shape[1], a.shape[0]), format='RGBA32F',
+                                         data=float_buffer(a))
+    ptex, ntex, ctex = tex(pos), tex(nrm), tex(col)
+    rtex, dtex = tex(R), tex(D)
+    gbuf = {"textures": {"position": ptex}}
+    h = hzb.depth_pyramid(gbuf, vp, W, H)
+    info = compute.new_info()
+    for slot, name in enumerate(("gbuf_position", "gbuf_normal", "hzb", "colour",
+                                 "rays", "dirs")):
+        info.sampler(slot, 'FLOAT_2D', name)
+    info.image(0, 'RGBA32F', 'FLOAT_2D', "out_image", qualifiers={'WRITE'})
+    info.image(1, 'RGBA32F', 'FLOAT_2D', "colour_out", qualifiers={'WRITE'})
+    info.push_constant('MAT4', "view_proj")
+    info.push_constant('VEC4', "cam")
+    src = glsl(("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl")) + SRC
+    sh = compute.create(info, src)
+    sh.uniform_sampler("gbuf_position", ptex)
+    sh.uniform_sampler("gbuf_normal", ntex)
+    sh.uniform_sampler("hzb", h)
+    sh.uniform_sampler("colour", ctex)
+    sh.uniform_sampler("rays", rtex)
+    sh.uniform_sampler("dirs", dtex)
+    import mathutils
+    sh.uniform_float("view_proj", mathutils.Matrix(vp.tolist()))
+    sh.uniform_float("cam", [0.0, 0.0, 0.0, 0.1])
+    out = compute.texture((len(rays), 1))
+    cout = compute.texture((len(rays), 1))
+    sh.image("out_image", out)
+    sh.image("colour_out", cout)
+    compute.dispatch(sh, len(rays), 1)
+    OUT["trace"] = compute.read(out)[0]
+    OUT["colour"] = compute.read(cout)[0]
 
-bpy.utils.register_class(RayTestEngine)
-scene = bpy.context.scene
-cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-scene.collection.objects.link(cam)
-scene.camera = cam
-scene.render.engine = "LUMEN_SCREEN_RAY_TEST"
-scene.render.resolution_x = scene.render.resolution_y = 4
-bpy.ops.render.render()
-assert not ERRORS, ERRORS[0]
+run_in_gpu_context(job)
 np.savez("rays.npz", col=col, cone=np.array(cone), **OUT)
 emit(ok=True)
 """
