@@ -74,9 +74,11 @@ class Progressive:
     running mean of FRAMES such parts is exactly F12's full pass (light_lib.glsl:
     light_irradiance_part); after that the pass does not run again until the view, the scene or
     the world changes (`key`: camera, size, sky cones, the engine instance's depsgraph epoch).
-    The first redraw after a change costs a quarter of the full pass."""
+    TAKE = 1: the first redraw after a change costs an eighth of the full pass, as the GI's
+    GISettings.split spreads its own work (bench/pass_profile.py: with TAKE = 2 the direct
+    part was the largest pass of a still 640x360 redraw once the GI was split)."""
 
-    TAKE = 2
+    TAKE = 1
     FRAMES = max(LIGHT_SAMPLES, SKY_CONES) // TAKE
 
     def __init__(self):

@@ -135,6 +135,10 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         # one iteration; the surface cache's tiles blend by their own counts (plan() above)
         m = probes.history is not None and probes.frames or 0
         schedule = [(1.0, max(1.0 / (m + 1), 1.0 / gi.history))]
+    # the viewport's split: one pixel of each block integrated per redraw, in turns counted from
+    # the history's reset (only Lumen's own screen probes; VXGI and the PIXEL gather run whole)
+    split = int(gi.split) if not final and gather is None and gi.gather == "PROBES" else 1
+    split_frame = probes.frames if probes.history is not None else 0
     result, relit, gathered, last = None, 0, 0, None
     relight = final or scene_changed         # the voxel lighting holds light from before a reset
     for sc_blend, px_blend in schedule:
@@ -185,11 +189,16 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                     if final:
                         rc.update(rc_budget=rcache.capacity, rc_blend=1.0 / (gathered + 1),
                                   rc_retrace=None)
+                if split > 1:
+                    rc.update(split=split, split_frame=split_frame)
                 new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels,
                                     **rc)
                 gathered += 1
             last = new
-            result = probes.temporal(new, px_blend)
+            if split > 1:
+                result = probes.temporal_split(new, gbuf, cam_pos, split, gi.history)
+            else:
+                result = probes.temporal(new, px_blend)
         timings["gsdf"] += b - a
         timings["voxel_lighting"] += (v - b) + (c2 - c)
         timings["sc_indirect"] += c - v
@@ -199,9 +208,10 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         progress = (len(schedule), len(schedule))
     else:          # the viewport: frames in the probe history and the least-updated tile's count
         h = max(int(gi.history), 1)
-        progress = (min(probes.frames, int(cache.pages.count.min(initial=h)), h), h)
+        n = h * split                    # redraws: each pixel's `history` turns, one per split
+        progress = (min(probes.frames, int(cache.pages.count.min(initial=h)) * split, n), n)
     return {"texture": result, "timings": timings, "iterations": len(schedule),
             "progress": progress,
             "sc_tiles": relit, "sc_tiles_total": len(cache.pages),
-            "converged": final or (probes.frames >= gi.history
+            "converged": final or (probes.frames >= gi.history * split
                                    and cache.pages.converged(gi.history))}

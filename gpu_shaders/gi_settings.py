@@ -10,10 +10,17 @@ F12 render accumulates:
                      probe_res_for: kept on a small image, see MIN_PROBE_RES)
     gsdf_n, gsdf_voxel  global SDF clipmap texels per side and level-0 voxel (metres)
     history          viewport temporal filter: exponential over about this many frames
-    sc_tiles         viewport surface-cache budget: tiles of 32x32 lighting texels relit per frame
-                     (surface_cache_pages.py; F12: the tiles the view reads and
-                     render_sc_share() of the others per iteration, by priority); the
-                     scene's Cache Texels per Frame overrides it
+    sc_tiles         viewport surface-cache budget: tiles of 32x32 lighting texels relit per
+                     refinement step, so per redraw / split (surface_cache_pages.py; F12: the
+                     tiles the view reads and render_sc_share() of the others per iteration,
+                     by priority); the scene's Cache Texels per Frame overrides it (per redraw)
+`split` (the viewport: VIEWPORT_SPLIT; F12: 1): one refinement step of the viewport is spread over
+`split` redraws, as EEVEE's viewport takes one sample per redraw: each redraw integrates one pixel
+of every sqrt(split)^2 block (screen_probes.ScreenProbes.temporal_split fills and blends the rest),
+its probes trace 1 / split of the rays (octahedral resolution / sqrt(split)), the surface cache
+relights sc_tiles / split tiles, and the history holds `history` samples per pixel, so
+`history` x split redraws. Why: a still 640x360 redraw was 2.4x EEVEE's one-sample frame
+(bench/pass_profile.py: probe rays 51%, per-pixel integration 19%).
 `voxel_lighting` (on unless a settings object says otherwise): a global-SDF hit is searched among
 its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, it is searched on
 every mesh SDF and reads the surface cache, whose cost grows with the number of objects.
@@ -36,6 +43,7 @@ QUALITIES = ("OFF",) + tuple(PRESETS)
 CACHE_TEXELS_PER_FRAME = 0         # viewport surface-cache texels per frame (0: the preset's)
 MIN_PROBES_ACROSS = 16             # screen probes across an image's shorter side, at least
 MIN_PROBE_RES = 8                  # octahedral texels per side a halved-tile probe keeps, at least
+VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split (1, 4 or 16)
 
 
 @dataclass(frozen=True)
@@ -72,6 +80,8 @@ class GISettings:
                                    # 0.0286 / 0.0252; README: screen trace)
     screen_steps: int = 50         # HZB cells per screen ray (the lecture's "HZB Max Step=50")
     screen_thickness: float = 0.1  # metres a surface is assumed thick behind the depth buffer
+    split: int = 1                 # redraws one refinement step is spread over (from_scene:
+                                   # VIEWPORT_SPLIT in the viewport, 1 for F12; see `split`)
 
     @property
     def enabled(self) -> bool:
@@ -120,9 +130,20 @@ class GISettings:
         0.0081 (SSIM 0.928 / 0.941 / 0.950), for 0.44x / 0.80x of cornell's F12 time."""
         r = max(int(self.probe_res), 1)
         t = self.probe_tile_for(width, height)
-        if t >= self.probe_tile:
-            return r
-        return min(r, max(MIN_PROBE_RES, r * t // max(int(self.probe_tile), 1)))
+        if t < self.probe_tile:
+            r = min(r, max(MIN_PROBE_RES, r * t // max(int(self.probe_tile), 1)))
+        return r if self.split_step == 1 else max(r // self.split_step, 2)
+
+    @property
+    def split_step(self) -> int:
+        """sqrt(split): the pixel block side the viewport integrates one pixel of per redraw,
+        and the factor its probes' octahedral resolution is divided by."""
+        return {1: 1, 4: 2, 16: 4}[int(self.split)]
+
+    @property
+    def history_frames(self) -> int:
+        """Redraws for a full history: `history` samples per pixel, one per split redraws."""
+        return max(int(self.history), 1) * int(self.split)
 
     def render_sc_share(self) -> float:
         """F12: the share of the surface-cache tiles the view does not read that each iteration
@@ -157,13 +178,14 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
     d = GISettings()
     s = engine_settings
     q = getattr(s, "render_quality", d.quality)
+    extra = {}
     if viewport:
         q = getattr(s, "viewport_quality", q)
-    extra = {}
+        extra["split"] = VIEWPORT_SPLIT
     texels = int(getattr(s, "cache_texels_per_frame", CACHE_TEXELS_PER_FRAME) or 0)
     if texels > 0:
         extra["sc_tiles"] = -(-texels // 1024)
-    return settings(q, bounces=int(getattr(s, "bounces", d.bounces)),
+    out = settings(q, bounces=int(getattr(s, "bounces", d.bounces)),
                     render_frames=int(getattr(s, "render_frames", d.render_frames)),
                     aa_samples=int(getattr(s, "aa_samples", d.aa_samples)),
                     gather=str(getattr(s, "gi_gather", d.gather)),
@@ -173,3 +195,6 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
                     adaptive_probes=bool(getattr(s, "adaptive_probes", d.adaptive_probes)),
                     probe_importance=bool(getattr(s, "probe_importance", d.probe_importance)),
                     **extra)
+    if out.split > 1 and "sc_tiles" not in extra:   # the preset's budget, spread as the rest
+        out = replace(out, sc_tiles=max(out.sc_tiles // out.split, 1))
+    return out
