@@ -138,12 +138,10 @@ class GISettings:
     def split_step(self) -> int:
         """sqrt(split): the pixel block side the viewport integrates one pixel of per redraw,
         and the factor its probes' octahedral resolution is divided by."""
-        return {1: 1, 4: 2, 16: 4}[int(self.split)]
-
-    @property
-    def history_frames(self) -> int:
-        """Redraws for a full history: `history` samples per pixel, one per split redraws."""
-        return max(int(self.history), 1) * int(self.split)
+        step = {1: 1, 4: 2, 16: 4}.get(int(self.split))
+        if step is None:
+            raise ValueError(f"GI split {self.split!r}: use 1, 4 or 16")
+        return step
 
     def render_sc_share(self) -> float:
         """F12: the share of the surface-cache tiles the view does not read that each iteration

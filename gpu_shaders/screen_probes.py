@@ -42,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import compute, radiance_cache, screen_trace
+from .gi_settings import GISettings
 from .probe_math import hammersley
 
 GBUF = ("gbuf_position", "gbuf_normal")
@@ -213,7 +214,7 @@ class ScreenProbes:
                ray_jitter=ray_j, out_image=tex["sh"])
 
         tex["integrated"] = compute.texture((self.width, self.height))
-        step = split_step(split)
+        step = GISettings(split=split).split_step
         INTEGRATE.run((-(-self.width // step), -(-self.height // step)), **tracers,
                       px_step=step, px_phase=split_phase_pixel(split_frame % split, step), frame=int(frame), t_max=float(t_max),
                       gbuf_position=gpos, gbuf_normal=gnor, probe_info=tex["info"],
@@ -264,7 +265,7 @@ class ScreenProbes:
         TEMPORAL_SPLIT.run((self.width, self.height), indirect_new=new,
                            indirect_history=self.history if frame else new,
                            gbuf_position=g["position"], gbuf_normal=g["normal"],
-                           cam_pos=compute.vec(cam_pos), px_step=split_step(split),
+                           cam_pos=compute.vec(cam_pos), px_step=GISettings(split=split).split_step,
                            frame=int(frame), history_len=float(history_len), out_image=out)
         self.history, self.frames = out, frame + 1
         return out
@@ -279,14 +280,6 @@ class ScreenProbes:
         if self.history is not None:
             out["probes_history"] = self.width * self.height * 16
         return out
-
-
-def split_step(split: int) -> int:
-    """The pixel block side of a split (1, 4 or 16 redraws per refinement step)."""
-    step = {1: 1, 4: 2, 16: 4}.get(int(split))
-    if step is None:
-        raise ValueError(f"GI split {split!r}: use 1, 4 or 16")
-    return step
 
 
 def split_phase(x, y, step: int):

@@ -1,0 +1,34 @@
+"""The viewport's split in the settings (gi_settings.from_scene): the viewport spreads a
+refinement step over VIEWPORT_SPLIT redraws (half the probes' octahedral resolution, a quarter of
+the preset's surface-cache tiles, history x split redraws); F12 is untouched, and a user's own
+Cache Texels per Frame is a per-redraw budget, kept as it is."""
+from types import SimpleNamespace
+
+import pytest
+
+from gpu_shaders import gi_settings
+
+
+def scene(**kw):
+    base = dict(render_quality="MEDIUM", viewport_quality="MEDIUM", cache_texels_per_frame=0)
+    return SimpleNamespace(**dict(base, **kw))
+
+
+def test_viewport_splits_and_f12_does_not():
+    f12 = gi_settings.from_scene(scene())
+    vp = gi_settings.from_scene(scene(), viewport=True)
+    assert f12.split == 1 and vp.split == gi_settings.VIEWPORT_SPLIT == 4
+    assert f12.probe_res_for(640, 360) == 8 and vp.probe_res_for(640, 360) == 4
+    assert f12.probe_res_for(128, 128) == 8 and vp.probe_res_for(128, 128) == 4
+    preset = gi_settings.PRESETS["MEDIUM"]
+    assert f12.sc_tiles == preset["sc_tiles"] and vp.sc_tiles == preset["sc_tiles"] // 4
+
+
+def test_user_cache_budget_is_per_redraw():
+    vp = gi_settings.from_scene(scene(cache_texels_per_frame=5000), viewport=True)
+    assert vp.sc_tiles == 5
+
+
+def test_bad_split_raises():
+    with pytest.raises(ValueError, match="split 3"):
+        gi_settings.settings("LOW", split=3).split_step
