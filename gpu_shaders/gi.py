@@ -136,8 +136,10 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         m = probes.history is not None and probes.frames or 0
         schedule = [(1.0, max(1.0 / (m + 1), 1.0 / gi.history))]
     # the viewport's split: one pixel of each block integrated per redraw, in turns counted from
-    # the history's reset (only Lumen's own screen probes; VXGI and the PIXEL gather run whole)
-    split = int(gi.split) if not final and gather is None and gi.gather == "PROBES" else 1
+    # the history's reset (only Lumen's own screen probes without the radiance cache or
+    # importance sampling, whose rays depend on the frame; VXGI and PIXEL run whole)
+    split = int(gi.split) if (not final and gather is None and gi.gather == "PROBES"
+                              and rcache is None and not gi.probe_importance) else 1
     split_frame = probes.frames if probes.history is not None else 0
     result, relit, gathered, last = None, 0, 0, None
     relight = final or scene_changed         # the voxel lighting holds light from before a reset

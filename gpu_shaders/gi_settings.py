@@ -17,9 +17,11 @@ F12 render accumulates:
 `split` (the viewport: VIEWPORT_SPLIT; F12: 1): one refinement step of the viewport is spread over
 `split` redraws, as EEVEE's viewport takes one sample per redraw: each redraw integrates one pixel
 of every sqrt(split)^2 block (screen_probes.ScreenProbes.temporal_split fills and blends the rest),
-its probes trace 1 / split of the rays (octahedral resolution / sqrt(split)), the surface cache
-relights sc_tiles / split tiles, and the history holds `history` samples per pixel, so
-`history` x split redraws. Why: a still 640x360 redraw was 2.4x EEVEE's one-sample frame
+its probes, placed anew every split redraws, trace one texel of every sqrt(split)^2 block of
+their octahedral map per redraw (the others keep earlier redraws' rays: a pixel's turn comes
+every split redraws, when every texel has been traced again, so each of its samples has the
+noise of a whole probe), the surface cache relights sc_tiles / split tiles, and the history holds
+`history` samples per pixel, so `history` x split redraws. Why: a still 640x360 redraw was 2.4x EEVEE's one-sample frame
 (bench/pass_profile.py: probe rays 51%, per-pixel integration 19%).
 `voxel_lighting` (on unless a settings object says otherwise): a global-SDF hit is searched among
 its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, it is searched on
@@ -132,12 +134,12 @@ class GISettings:
         t = self.probe_tile_for(width, height)
         if t < self.probe_tile:
             r = min(r, max(MIN_PROBE_RES, r * t // max(int(self.probe_tile), 1)))
-        return r if self.split_step == 1 else max(r // self.split_step, 2)
+        return r
 
     @property
     def split_step(self) -> int:
-        """sqrt(split): the pixel block side the viewport integrates one pixel of per redraw,
-        and the factor its probes' octahedral resolution is divided by."""
+        """sqrt(split): the side of the pixel blocks the viewport integrates one pixel of per
+        redraw, and of the probe texel blocks it traces one texel of."""
         step = {1: 1, 4: 2, 16: 4}.get(int(self.split))
         if step is None:
             raise ValueError(f"GI split {self.split!r}: use 1, 4 or 16")

@@ -62,10 +62,11 @@ RAYS = compute.Pass("screen_probe_rays",
                           ('INT', 'frame'), ('INT', 'uniform_rows')))
 TRACE = compute.Pass("screen_probe_trace",
                      samplers=("probe_info", "probe_normal", "probe_rays") + screen_trace.SAMPLERS,
-                     images=("out_image", ("rc_marks", 'R32F')),
+                     images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}), ("rc_marks", 'R32F')),
                      push=(screen_trace.PUSH[0], radiance_cache.CAMERA, ('VEC2', 'ray_jitter'),
                            ('INT', 'probe_res'), ('FLOAT', 't_max'), ('INT', 'rc_frame'),
-                           screen_trace.PUSH[1]))
+                           screen_trace.PUSH[1], ('INT', 'texel_step'), ('IVEC2', 'texel_phase'),
+                           ('INT', 'texel_fill')))
 COMPOSE = compute.Pass("screen_probe_compose",
                        samplers=("probe_traced", "probe_plan", "probe_prior"),
                        images=("out_image", "probe_history_out"), push=(('INT', 'probe_res'),))
@@ -108,6 +109,7 @@ class ScreenProbes:
         self.prev = None             # last frame's probes (info, normal, history): the prior
         self.atlas = self.grid       # probe slots: the grid, + adaptive levels (gather)
         self.zero_rays = None        # the slot table without importance sampling (all own texel)
+        self.split_radiance = None   # the split viewport's probe texels, kept across redraws
 
     def jitter(self, frame: int):
         """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets."""
@@ -133,10 +135,15 @@ class ScreenProbes:
         Lumen's first trace on the HZB before the SDFs. split (1, 4 or 16; the viewport's
         GISettings.split): integrate only one pixel of every sqrt(split)^2 block, the one whose
         turn it is at redraw `split_frame` since the history's reset (temporal_split fills the
-        rest)."""
+        rest), and trace one texel of every such block of the probes' octahedral maps, the
+        others kept from earlier redraws (placement held for `split` redraws)."""
         gw, gh = self.grid
         r = self.res
-        tile_j, ray_j = self.jitter(frame)
+        step = GISettings(split=split).split_step
+        if r % step:
+            raise ValueError(f"probe resolution {r} is not a multiple of the split's {step}")
+        # the split: placement and ray jitter held for `split` redraws (one per texel turn)
+        tile_j, ray_j = self.jitter(frame - split_frame + split_frame // split)
         g = gbuf["textures"]
         tex = self.textures
         tex["info"] = compute.texture((gw, gh))
@@ -164,7 +171,7 @@ class ScreenProbes:
             self.prev = None               # adaptive probes switched: no prior this frame
         self.atlas = (aw, ah)
 
-        sampled = importance and self.prev is not None and r == compute.GROUP
+        sampled = importance and self.prev is not None and r == compute.GROUP and step == 1
         if sampled:
             self._plan_rays(gbuf, cam_pos, frame)
         else:
@@ -176,9 +183,19 @@ class ScreenProbes:
                 tex.pop(k, None)
         self.sampled = sampled
 
-        tex["radiance"] = compute.texture((aw * r, ah * r))
+        fill = step > 1 and (split_frame == 0 or self.split_radiance is None
+                             or self.split_radiance.width != aw * r
+                             or self.split_radiance.height != ah * r)
+        if step == 1:
+            tex["radiance"] = compute.texture((aw * r, ah * r))
+        else:          # kept across redraws: each traces one texel of every 2x2 block
+            if fill:
+                self.split_radiance = compute.texture((aw * r, ah * r))
+            tex["radiance"] = self.split_radiance
         tracers = dict(scene=resources, cache=cache, gsdf=gsdf, sky=sky, voxels=voxels)
-        TRACE.run((aw * r, ah * r), **tracers, probe_info=tex["info"],
+        TRACE.run((aw * r // step, ah * r // step), **tracers, probe_info=tex["info"],
+                  texel_step=step, texel_phase=split_phase_pixel(split_frame % split, step),
+                  texel_fill=int(fill),
                   probe_normal=tex["normal"], probe_rays=tex["rays"], probe_res=r,
                   ray_jitter=ray_j, t_max=float(t_max), out_image=tex["radiance"],
                   **(screen.inputs() if screen is not None else screen_trace.off_inputs(gbuf)),
