@@ -6,7 +6,8 @@
  * 2x2 block), so redraw `frame` (0 = the first since the history was reset) integrates the pixels
  * whose phase is frame % split. A pixel's own samples before this redraw are therefore
  * m = frame > phase ? (frame - 1 - phase) / split + 1 : 0, and nothing per pixel is stored:
- *   its turn:    mix(history, new, max(1 / (m + 1), 1 / history_len)) (m = 0: new)
+ *   its turn:    mix(history, new, max(1 / (k + 1), 1 / history_len)), k = m but m - 1 from
+ *                the second round on (its first-round sample is replaced: see `kept`)
  *   not its turn, m > 0: the history as it is
  *   m = 0 (not yet integrated, e.g. the first redraws after the camera moved): filled from this
  *   redraw's integrated pixels around it, by plane distance (probe_interp_lib's sharpness) and
@@ -43,8 +44,11 @@ void main()
   int m = frame > phase ? (frame - 1 - phase) / split + 1 : 0;
   if (frame % split == phase) {
     vec4 e = texelFetch(indirect_new, px, 0);
-    vec3 h = m > 0 ? texelFetch(indirect_history, px, 0).rgb : e.rgb;
-    float blend = max(1.0 / float(m + 1), 1.0 / max(history_len, 1.0));
+    /* the first round's sample saw probes partly filled from a quarter of their rays
+     * (screen_probe_trace's texel_fill): the second round replaces it */
+    int kept = frame >= split ? m - 1 : m;
+    vec3 h = kept > 0 ? texelFetch(indirect_history, px, 0).rgb : e.rgb;
+    float blend = max(1.0 / float(kept + 1), 1.0 / max(history_len, 1.0));
     imageStore(out_image, px, vec4(mix(h, e.rgb, blend), e.w));
     return;
   }

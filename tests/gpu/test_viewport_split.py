@@ -1,7 +1,7 @@
 """The viewport's split (GISettings.split = 4): each redraw integrates one pixel of every 2x2 block
 and screen_probe_temporal_split blends it into the history by that pixel's own sample count,
 keeps the others, and fills pixels not yet integrated from this redraw's neighbours on their
-plane. Exact: per redraw the integrated pixels carry one known value and every other pixel
+plane; its first round's sample (probes partly filled) is replaced by the second's. Exact: per redraw the integrated pixels carry one known value and every other pixel
 garbage, so any wrong turn (GLSL's Bayer order against screen_probes.split_phase), wrong count or
 garbage read shows. llvmpipe, bpy in a subprocess."""
 import sys
@@ -57,7 +57,8 @@ emit(**OUT)
 
 def expected():
     """The same history in numpy: per pixel its own turns (Bayer 0 3 / 2 1), a running mean
-    then exponential over HISTORY; before its first turn this redraw's value (one per redraw)."""
+    then exponential over HISTORY, the first round's sample replaced by the second's; before its
+    first turn this redraw's value (one per redraw)."""
     ys, xs = np.mgrid[0:H, 0:W]
     b = 2 * ((xs & 1) ^ (ys & 1)) + (ys & 1)
     hist = np.zeros((H, W, 2))
@@ -66,7 +67,8 @@ def expected():
     for f in range(FRAMES):
         v = np.array([f + 1.0, 2.0 * f])
         mine = b == f % 4
-        blend = np.maximum(1.0 / (count + 1), 1.0 / HISTORY)[..., None]
+        kept = count - 1 if f >= 4 else count
+        blend = np.maximum(1.0 / (kept + 1), 1.0 / HISTORY)[..., None]
         hist = np.where(mine[..., None], hist * (1 - blend) + v * blend, hist)
         count = count + mine
         out.append(np.where((count > 0)[..., None], hist, v))
