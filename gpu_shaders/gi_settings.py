@@ -45,7 +45,8 @@ QUALITIES = ("OFF",) + tuple(PRESETS)
 CACHE_TEXELS_PER_FRAME = 0         # viewport surface-cache texels per frame (0: the preset's)
 MIN_PROBES_ACROSS = 16             # screen probes across an image's shorter side, at least
 MIN_PROBE_RES = 8                  # octahedral texels per side a halved-tile probe keeps, at least
-VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split (1, 4 or 16)
+VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split by default (1, 4 or 16;
+                                   # the scene's viewport_split, Viewport > Spread over)
 
 
 @dataclass(frozen=True)
@@ -181,7 +182,7 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
     extra = {}
     if viewport:
         q = getattr(s, "viewport_quality", q)
-        extra["split"] = VIEWPORT_SPLIT
+        extra["split"] = int(getattr(s, "viewport_split", VIEWPORT_SPLIT))
     texels = int(getattr(s, "cache_texels_per_frame", CACHE_TEXELS_PER_FRAME) or 0)
     if texels > 0:
         extra["sc_tiles"] = -(-texels // 1024)
