@@ -83,6 +83,8 @@ class GISettings:
                                    # 0.0286 / 0.0252; README: screen trace)
     screen_steps: int = 50         # HZB cells per screen ray (the lecture's "HZB Max Step=50")
     screen_thickness: float = 0.1  # metres a surface is assumed thick behind the depth buffer
+    pixel_size: int = 1            # the viewport's Pixel Size (engine.frame): probe_tile_for
+                                   # counts probes across the region shown, not the image
     split: int = 1                 # redraws one refinement step is spread over (from_scene:
                                    # VIEWPORT_SPLIT in the viewport, 1 for F12; see `split`)
 
@@ -116,9 +118,13 @@ class GISettings:
         a Cornell box's ceiling (18 rows at 128 px) then got one row of probes, its front-to-
         back gradient flattened (1.66x the reference's irradiance at the front, 0.72x at the
         back). bench/quality.py cornell at 128 px, 512 spp, tile 16 -> 8: relMSE 0.0179 ->
-        0.0081, SSIM 0.930 -> 0.950. From 256 px up (16 x 16) nothing changes."""
+        0.0081, SSIM 0.930 -> 0.950. From 256 px up (16 x 16) nothing changes. The viewport
+        counts the region it shows (the image x pixel_size): a Pixel Size of 2 renders a quarter
+        of the pixels and, with the preset's tile, a quarter of the probes, as Cycles and EEVEE
+        do a quarter of their work (halving the tile there kept every probe ray: Pixel Size 2
+        was 1.70x EEVEE's frame where Pixel Size 1 was 2.13x)."""
         t = max(int(self.probe_tile), 1)
-        short = min(int(width), int(height))
+        short = min(int(width), int(height)) * max(int(self.pixel_size), 1)
         while t > 8 and short < MIN_PROBES_ACROSS * t:
             t //= 2
         return t

@@ -32,3 +32,13 @@ def test_user_cache_budget_is_per_redraw():
 def test_bad_split_raises():
     with pytest.raises(ValueError, match="split 3"):
         gi_settings.settings("LOW", split=3).split_step
+
+
+def test_pixel_size_counts_the_region_shown():
+    """Pixel Size 2 at a 640x360 region: a 320x180 image keeps the preset's 16 px tile (a
+    quarter of the probes), where a 320x180 F12 image halves it (MIN_PROBES_ACROSS)."""
+    vp = gi_settings.from_scene(scene(), viewport=True)
+    assert vp.probe_tile_for(320, 180) == 8
+    from dataclasses import replace
+    assert replace(vp, pixel_size=2).probe_tile_for(320, 180) == 16
+    assert replace(vp, pixel_size=2).probe_tile_for(64, 64) == 8
