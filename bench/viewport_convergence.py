@@ -39,7 +39,8 @@ def main():
     ap.add_argument("--scenes", default="cornell,window,thin,yard,glow,imported,textured")
     ap.add_argument("--max-redraws", type=int, default=120)
     ap.add_argument("--split", type=int, default=None,
-                    help="gi_settings.VIEWPORT_SPLIT for this run (1: every pixel every redraw)")
+                    help="the scenes' Viewport > Spread over (viewport_split: 1, 4 or 16; default "
+                    "the property's default)")
     args = ap.parse_args()
 
     import bpy
@@ -49,8 +50,6 @@ def main():
 
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
-    if args.split is not None:
-        addon.gpu_shaders.gi_settings.VIEWPORT_SPLIT = args.split
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name in args.scenes.split(","):
@@ -65,6 +64,8 @@ def main():
             if bpy.ops.lumen.bake() != {'FINISHED'}:
                 raise SystemExit(f"[{name}] bake failed")
             scene.render.engine = "LUMEN_GI"
+            if args.split is not None:
+                scene.lumen.engine.viewport_split = str(args.split)
             engine.KEEP_IMAGES = True
             bpy.ops.render.render()                   # warm-up (compilation)
             t = time.perf_counter()
