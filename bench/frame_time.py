@@ -23,7 +23,9 @@ gi_settings.from_scene for the bench: the scene has no property for it).
 
 With `--viewport W H` it also times the viewport path: the engine's own view_draw at W x H
 (tools/viewport_harness.py: offscreen, duck-typed context, one GI iteration per redraw) at viewport
-Pixel Size 1 and 2, against EEVEE's 1-sample render at W x H.
+Pixel Size 1 and 2, against EEVEE's 1-sample render at W x H: Progressive.FRAMES + --repeat redraws
+of a still camera, the median of all but the first and apart, of those while the progressive
+direct light still adds a part and of those after it.
 
 With `--radiance-cache` it also renders with the world radiance cache (radiance_cache.py) off
 and on: F12 one-GI-frame renders alternately (an F12 render starts with an empty cache: the
@@ -308,13 +310,17 @@ def main():
             def gi_state(i):
                 R = engine.LAST_RENDER
                 t = R.get("gi_timings", {})
-                return (t.get("sc_indirect", 0.0), R.get("gi_sc_tiles", (0, 0)))
+                return (t.get("sc_indirect", 0.0), R.get("gi_sc_tiles", (0, 0)),
+                        R.get("direct_part") is not None)
+            from lumen_gi.gpu_shaders import direct_light
             for label, ps, texels in (("Pixel Size 1", "1", 0), ("Pixel Size 2", "2", 0),
                                       ("Pixel Size 2, no cache budget", "2", 1 << 30)):
                 scene.render.preview_pixel_size = ps
                 scene.lumen.engine.cache_texels_per_frame = texels
-                out = viewport_harness.run(scene, engine.LumenGIRenderEngine, vw, vh,
-                                           redraws=args.repeat + 1, on_redraw=gi_state)
+                # enough redraws for the progressive direct light to finish, then `repeat` more
+                out = viewport_harness.run(
+                    scene, engine.LumenGIRenderEngine, vw, vh,
+                    redraws=direct_light.Progressive.FRAMES + args.repeat, on_redraw=gi_state)
                 viewport[label] = (out["seconds"], out["after"])
             scene.lumen.engine.cache_texels_per_frame = 0
         eevee_id = [i.identifier for i in
@@ -383,9 +389,15 @@ def main():
             m = statistics.median(times[1:])
             sc = statistics.median(g[0] for g in gi[1:]) * 1000
             tiles = gi[-1][1]
+            # still redraws while the direct light refines (a part per redraw) and after it
+            refining = [t for t, g in zip(times[1:], gi[1:]) if g[2]] or [float("nan")]
+            still = [t for t, g in zip(times[1:], gi[1:]) if not g[2]] or [float("nan")]
+            m_r, m_s = statistics.median(refining), statistics.median(still)
             print(f"  LUMEN_GI view_draw, {label}: first {times[0] * 1000:.1f} ms, median "
                   f"{m * 1000:.1f} ms (surface-cache radiosity {sc:.1f} ms, {tiles[0]} of "
-                  f"{tiles[1]} tiles), ratio to EEVEE {m / m_ev:.3f}")
+                  f"{tiles[1]} tiles), ratio to EEVEE {m / m_ev:.3f}; while the direct light "
+                  f"refines {m_r * 1000:.1f} ms ({m_r / m_ev:.3f}), after {m_s * 1000:.1f} ms "
+                  f"({m_s / m_ev:.3f})")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Benchmark: two versions of the engine's GLSL, A/B in one process, pass by pass (viewport frame).
+"""Benchmark: two versions of the engine's GLSL or settings, A/B in one process, pass by pass.
 
 Each version is a whole copy of gpu_shaders/glsl (copy the folder, edit the copy). The rounds
 alternate A and B; each round frees every compiled shader, points the GLSL resolver at that
@@ -7,11 +7,13 @@ bench/frame_time.py's scene for 1 + 2 redraws and keeps the 2 after the first (c
 Why: on a shared machine two runs minutes apart differ by up to 2x; alternating in one process
 gives both versions the same load. Prints the median frame and per-pass milliseconds and B/A.
 The Python side is this checkout's: only GLSL that binds the same inputs can be compared.
+`--setting FIELD=VALUE` (repeatable) gives B a GISettings field of its own instead of (or as well
+as) other GLSL, patched into gi_settings.from_scene for the viewport (e.g. adaptive_probes=0).
 Found with it: gi_visible's corner test as twelve inlined SDF lookups cost 44% of the probe trace
 (README, frame time).
 
     .venv/bin/python bench/glsl_ab.py --b /tmp/variant [--a gpu_shaders/glsl] [--rounds 2]
-                                      [--viewport 640 360]
+                                      [--viewport 640 360] [--setting FIELD=VALUE ...]
 """
 from __future__ import annotations
 
@@ -33,14 +35,24 @@ PASSES = ("screen_probe_trace", "screen_probe_integrate", "direct_light",
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--a", default=str(ROOT / "gpu_shaders" / "glsl"), help="GLSL folder A")
-    ap.add_argument("--b", required=True, help="GLSL folder B")
+    ap.add_argument("--b", default=None, help="GLSL folder B (default: A)")
+    ap.add_argument("--setting", action="append", default=[], metavar="FIELD=VALUE",
+                    help="a GISettings field B renders with (int, float or 0/1)")
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--viewport", type=int, nargs=2, default=(640, 360), metavar=("W", "H"))
     args = ap.parse_args()
-    folders = [Path(args.a).resolve(), Path(args.b).resolve()]
+    folders = [Path(args.a).resolve(), Path(args.b or args.a).resolve()]
+    settings_b = {}
+    for item in args.setting:
+        field, _, value = item.partition("=")
+        settings_b[field] = float(value) if "." in value else int(value)
+    if folders[0] == folders[1] and not settings_b:
+        raise SystemExit("nothing to compare: give --b or --setting")
     for f in folders:
         if not (f / "sdf_lib.glsl").is_file():
             raise SystemExit(f"{f}: not a copy of gpu_shaders/glsl (no sdf_lib.glsl)")
+
+    import dataclasses
 
     import bpy
     import demo
@@ -51,8 +63,13 @@ def main():
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
     include = importlib.import_module(f"{addon.__name__}.gpu_shaders.glsl_include")
+    gi_settings = importlib.import_module(f"{addon.__name__}.gpu_shaders.gi_settings")
+    original = gi_settings.from_scene
+    for field, value in settings_b.items():
+        if field not in {f.name for f in dataclasses.fields(gi_settings.GISettings)}:
+            raise SystemExit(f"--setting {field}: not a GISettings field")
     width, height = args.viewport
-    results = {f: defaultdict(list) for f in folders}
+    results = [defaultdict(list), defaultdict(list)]
     with tempfile.TemporaryDirectory() as tmp:
         scene = frame_time.build_scene(Path(tmp), width, 0)
         scene.render.resolution_x, scene.render.resolution_y = width, height
@@ -60,7 +77,10 @@ def main():
         if bpy.ops.lumen.bake() != {'FINISHED'}:
             raise SystemExit("bake failed")
         for _ in range(args.rounds):
-            for folder in folders:
+            for version, folder in enumerate(folders):
+                extra = settings_b if version else {}
+                gi_settings.from_scene = (lambda s, viewport=False, extra=extra: dataclasses.replace(
+                    original(s, viewport), **extra))
                 addon.gpu_shaders.free_shaders()
                 include.files.__defaults__ = (folder,)     # the resolver's default folder
                 include.source.__defaults__ = (folder,)
@@ -78,15 +98,16 @@ def main():
                                          redraws=3, on_redraw=on_redraw)
                 finally:
                     undo()
+                    gi_settings.from_scene = original
                 for row in rows[1:]:
                     for k, v in row.items():
-                        results[folder][k].append(v)
+                        results[version][k].append(v)
     include.files.__defaults__ = include.source.__defaults__ = (include.GLSL,)
-    print(f"viewport {width}x{height}, {args.rounds} rounds, medians (ms)")
+    print(f"viewport {width}x{height}, {args.rounds} rounds, medians (ms); B: "
+          f"{folders[1] if folders[1] != folders[0] else 'same GLSL'} {settings_b or ''}")
     print(f"{'pass':32s} {'A':>10s} {'B':>10s} {'B/A':>7s}")
     for k in ("(frame)",) + PASSES:
-        a, b = (statistics.median(results[f][k]) * 1000 if results[f][k] else 0.0
-                for f in folders)
+        a, b = (statistics.median(r[k]) * 1000 if r[k] else 0.0 for r in results)
         print(f"{k:32s} {a:10.1f} {b:10.1f} {b / a if a else float('nan'):7.3f}")
 
 

@@ -22,10 +22,11 @@ from .sky_light import SkyLight
 GROUP = 8
 SKY_CONES = 8
 LIGHT_SAMPLES = 8          # points per light with a radius (light_lib.glsl: soft shadows)
-DIRECT = compute.Pass("direct_light", samplers=tuple("gbuf_" + n for n in ATTACHMENTS) + ("lights",),
-                      images=("direct_out", "combined_out"),
+DIRECT = compute.Pass("direct_light",
+                      samplers=tuple("gbuf_" + n for n in ATTACHMENTS) + ("lights", "single_in"),
+                      images=("direct_out", "combined_out", "single_out"),
                       push=(('VEC3', 'cam_pos'), ('INT', 'light_count'),
-                            ('INT', 'sample_plan'),   # samples + 256 first + 65536 take
+                            ('INT', 'sample_plan'),   # samples + 256 first + 65536 take + 2^24 mode
                             ('INT', 'sky_cones'), ('MAT4', 'inv_view_proj')))
 ACCUMULATE = compute.Pass("direct_accumulate", samplers=("new_direct", "new_combined"),
                           images=(("direct_mean", 'RGBA32F', {'READ', 'WRITE'}),
@@ -35,12 +36,14 @@ ACCUMULATE = compute.Pass("direct_accumulate", samplers=("new_direct", "new_comb
 
 def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLight, cam_pos,
           inv_view_proj, width: int, height: int, sky_cones: int = SKY_CONES, light_texture=None,
-          light_samples: int = LIGHT_SAMPLES, part=None) -> dict:
+          light_samples: int = LIGHT_SAMPLES, part=None, single=None) -> dict:
     """Run the pass; returns {'textures': {'direct', 'combined'} (GPUTextures, not read back),
     timings}.
     `light_texture`: the rows already on the GPU (SceneState.light_texture), else made here.
     sky_cones = 0 leaves the sky light out (the GI passes bring it). part = (first, take): only
-    those of each light's samples and of the sky cones (None: all; see Progressive)."""
+    those of each light's samples and of the sky cones (None: all; see Progressive).
+    single = (texture, store): the one-sample lights' E stored into the texture (store True) or
+    read from it instead of evaluated (False); None: evaluated as the others."""
     t0 = time.perf_counter()
     DIRECT.shader                        # compiled on first use
     t1 = time.perf_counter()
@@ -53,15 +56,27 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLig
     direct = gpu.types.GPUTexture((width, height), format='RGBA32F')
     combined = gpu.types.GPUTexture((width, height), format='RGBA32F')
     first, take = part if part is not None else (0, max(light_samples, sky_cones, 1))
+    if single is None:
+        single_tex, mode = _dummy(), 0
+    else:
+        single_tex, mode = single[0], (1 if single[1] else 2)
     DIRECT.run((width, height), scene=resources, sky=sky,
                **{"gbuf_" + n: gbuf["textures"][n] for n in ATTACHMENTS}, lights=light_tex,
                direct_out=direct, combined_out=combined, inv_view_proj=inv_view_proj,
+               single_in=single_tex if mode == 2 else _dummy(),
+               single_out=single_tex if mode == 1 else _dummy(),
                cam_pos=compute.vec(cam_pos), light_count=count, sky_cones=int(sky_cones),
-               sample_plan=int(light_samples) + 256 * int(first) + 65536 * int(take))
+               sample_plan=int(light_samples) + 256 * int(first) + 65536 * int(take)
+               + 16777216 * mode)
     out = {"textures": {"direct": direct, "combined": combined}}
     out["compile_seconds"] = t1 - t0
     out["shade_seconds"] = time.perf_counter() - t1
     return out
+
+
+def _dummy():
+    """A 1x1 texture for the single-light input or output a dispatch does not use."""
+    return gpu.types.GPUTexture((1, 1), format='RGBA32F')
 
 
 class Progressive:
@@ -74,9 +89,13 @@ class Progressive:
     running mean of FRAMES such parts is exactly F12's full pass (light_lib.glsl:
     light_irradiance_part); after that the pass does not run again until the view, the scene or
     the world changes (`key`: camera, size, sky cones, the engine instance's depsgraph epoch).
-    The first redraw after a change costs a quarter of the full pass."""
+    TAKE = 1: the first redraw after a change costs an eighth of the full pass, as the GI's
+    GISettings.split spreads its own work. A light with one sample (a sun, a light without
+    radius) is the same in every part: the first part stores its E (`single`) and the later
+    parts read it instead of tracing its shadow again (bench/pass_profile.py: a sun's shadow
+    cone made every part cost as much as the whole pass)."""
 
-    TAKE = 2
+    TAKE = 1
     FRAMES = max(LIGHT_SAMPLES, SKY_CONES) // TAKE
 
     def __init__(self):
@@ -84,6 +103,7 @@ class Progressive:
         self.done = 0            # parts in the mean (FRAMES: converged)
         self.direct = None       # RGBA32F running means (the pass's 'direct', 'combined')
         self.combined = None
+        self.single = None       # RGBA32F: the one-sample lights' E, from the first part
         self.dispatches = 0      # direct passes run (tests: none once converged)
 
     @property
@@ -101,8 +121,11 @@ class Progressive:
             return {"textures": {"direct": self.direct, "combined": self.combined},
                     "compile_seconds": 0.0, "shade_seconds": 0.0, "part": None}
         part = ((self.done * self.TAKE) % LIGHT_SAMPLES, self.TAKE)
+        if self.done == 0:
+            self.single = gpu.types.GPUTexture((width, height), format='RGBA32F')
         out = shade(resources, gbuf, lights, sky, cam_pos, inv_view_proj, width, height,
-                    sky_cones=sky_cones, light_texture=light_texture, part=part)
+                    sky_cones=sky_cones, light_texture=light_texture, part=part,
+                    single=(self.single, self.done == 0))
         self.dispatches += 1
         new = out["textures"]
         if self.done == 0:

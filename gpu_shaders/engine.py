@@ -53,6 +53,7 @@ or else from the scene's cache folder (scene.lumen.bake.cache_dir, resolved like
 """
 from __future__ import annotations
 
+import dataclasses
 import gc
 import time
 
@@ -230,7 +231,7 @@ def extraction(state):
 
 
 def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
-          view="COMBINED", final=True):
+          view="COMBINED", final=True, pixel_size=1):
     """One frame, for render() (final: F12, accumulates GI from scratch) and view_draw (one more
     GI iteration into the history) alike: sync `state` (the engine instance's SceneState), run
     the passes. Returns a Frame: the passes as GPU textures (nothing is read back here; F12
@@ -291,6 +292,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         LAST_RENDER["shown"] = img
         return Frame({}, img)
     gi_cfg = gi_settings.from_scene(engine_settings(scene), viewport=not final)
+    if pixel_size > 1:                          # the viewport's Pixel Size (view_draw)
+        gi_cfg = dataclasses.replace(gi_cfg, pixel_size=int(pixel_size))
     method, method_notes = gi_methods.from_scene(engine_settings(scene))   # gi_methods.METHODS
     sky = state.sky
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
@@ -625,7 +628,7 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             fr = frame(self._state, depsgraph, scene, np.array(rd.perspective_matrix, np.float64),
                        np.array(rd.view_matrix.inverted().translation, np.float64),
                        float(context.space_data.clip_end), fw, fh, debug_view(scene),
-                       final=False)
+                       final=False, pixel_size=ps)
         except Exception as exc:
             LAST_RENDER["error"] = str(exc)
             draw_message(f"Lumen GI: {exc}", w, h)

@@ -135,6 +135,12 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         # one iteration; the surface cache's tiles blend by their own counts (plan() above)
         m = probes.history is not None and probes.frames or 0
         schedule = [(1.0, max(1.0 / (m + 1), 1.0 / gi.history))]
+    # the viewport's split: one pixel of each block integrated per redraw, in turns counted from
+    # the history's reset (only Lumen's own screen probes without the radiance cache or
+    # importance sampling, whose rays depend on the frame; VXGI and PIXEL run whole)
+    split = int(gi.split) if (not final and gather is None and gi.gather == "PROBES"
+                              and rcache is None and not gi.probe_importance) else 1
+    split_frame = probes.frames if probes.history is not None else 0
     result, relit, gathered, last = None, 0, 0, None
     relight = final or scene_changed         # the voxel lighting holds light from before a reset
     for sc_blend, px_blend in schedule:
@@ -171,8 +177,11 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 # F12: every cache probe traced every gathered frame, texels a running mean
                 # (as the screen probes' own rays are: the same image quality); viewport: the
                 # budget, new probes first, exponential
+                # the split viewport: no adaptive probes; a pixel the uniform probes miss traces
+                # its own rays on its turn (bench/glsl_ab.py --setting adaptive_probes=0 with the
+                # split: probe trace 0.50x, probe filter 0.08x, frame 0.78x)
                 rc = {} if gather is not None else {"importance": gi.probe_importance,
-                                                 "adaptive": gi.adaptive_probes}
+                                                 "adaptive": gi.adaptive_probes and split == 1}
                 if screen is not None and probes.history is not None:
                     # F12: the last gather's own light (the running mean lags behind the cache's
                     # bounces); the viewport: the history (its converged light)
@@ -185,11 +194,16 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                     if final:
                         rc.update(rc_budget=rcache.capacity, rc_blend=1.0 / (gathered + 1),
                                   rc_retrace=None)
+                if split > 1:
+                    rc.update(split=split, split_frame=split_frame)
                 new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels,
                                     **rc)
                 gathered += 1
             last = new
-            result = probes.temporal(new, px_blend)
+            if split > 1:
+                result = probes.temporal_split(new, gbuf, cam_pos, split, gi.history)
+            else:
+                result = probes.temporal(new, px_blend)
         timings["gsdf"] += b - a
         timings["voxel_lighting"] += (v - b) + (c2 - c)
         timings["sc_indirect"] += c - v
@@ -199,9 +213,10 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         progress = (len(schedule), len(schedule))
     else:          # the viewport: frames in the probe history and the least-updated tile's count
         h = max(int(gi.history), 1)
-        progress = (min(probes.frames, int(cache.pages.count.min(initial=h)), h), h)
+        n = h * split                    # redraws: each pixel's `history` turns, one per split
+        progress = (min(probes.frames, int(cache.pages.count.min(initial=h)) * split, n), n)
     return {"texture": result, "timings": timings, "iterations": len(schedule),
             "progress": progress,
             "sc_tiles": relit, "sc_tiles_total": len(cache.pages),
-            "converged": final or (probes.frames >= gi.history
+            "converged": final or (probes.frames >= gi.history * split
                                    and cache.pages.converged(gi.history))}

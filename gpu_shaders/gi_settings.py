@@ -10,10 +10,19 @@ F12 render accumulates:
                      probe_res_for: kept on a small image, see MIN_PROBE_RES)
     gsdf_n, gsdf_voxel  global SDF clipmap texels per side and level-0 voxel (metres)
     history          viewport temporal filter: exponential over about this many frames
-    sc_tiles         viewport surface-cache budget: tiles of 32x32 lighting texels relit per frame
-                     (surface_cache_pages.py; F12: the tiles the view reads and
-                     render_sc_share() of the others per iteration, by priority); the
-                     scene's Cache Texels per Frame overrides it
+    sc_tiles         viewport surface-cache budget: tiles of 32x32 lighting texels relit per
+                     refinement step, so per redraw / split (surface_cache_pages.py; F12: the
+                     tiles the view reads and render_sc_share() of the others per iteration,
+                     by priority); the scene's Cache Texels per Frame overrides it (per redraw)
+`split` (the viewport: VIEWPORT_SPLIT; F12: 1): one refinement step of the viewport is spread over
+`split` redraws, as EEVEE's viewport takes one sample per redraw: each redraw integrates one pixel
+of every sqrt(split)^2 block (screen_probes.ScreenProbes.temporal_split fills and blends the rest),
+its probes, placed anew every split redraws, trace one texel of every sqrt(split)^2 block of
+their octahedral map per redraw (the others keep earlier redraws' rays: a pixel's turn comes
+every split redraws, when every texel has been traced again, so each of its samples has the
+noise of a whole probe), the surface cache relights sc_tiles / split tiles, and the history holds
+`history` samples per pixel, so `history` x split redraws. Why: a still 640x360 redraw was 2.4x EEVEE's one-sample frame
+(bench/pass_profile.py: probe rays 51%, per-pixel integration 19%).
 `voxel_lighting` (on unless a settings object says otherwise): a global-SDF hit is searched among
 its voxel tile's objects and reads the voxel lighting (voxel_lighting.py); off, it is searched on
 every mesh SDF and reads the surface cache, whose cost grows with the number of objects.
@@ -36,6 +45,8 @@ QUALITIES = ("OFF",) + tuple(PRESETS)
 CACHE_TEXELS_PER_FRAME = 0         # viewport surface-cache texels per frame (0: the preset's)
 MIN_PROBES_ACROSS = 16             # screen probes across an image's shorter side, at least
 MIN_PROBE_RES = 8                  # octahedral texels per side a halved-tile probe keeps, at least
+VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split by default (1, 4 or 16;
+                                   # the scene's viewport_split, Viewport > Spread over)
 
 
 @dataclass(frozen=True)
@@ -72,6 +83,10 @@ class GISettings:
                                    # 0.0286 / 0.0252; README: screen trace)
     screen_steps: int = 50         # HZB cells per screen ray (the lecture's "HZB Max Step=50")
     screen_thickness: float = 0.1  # metres a surface is assumed thick behind the depth buffer
+    pixel_size: int = 1            # the viewport's Pixel Size (engine.frame): probe_tile_for
+                                   # counts probes across the region shown, not the image
+    split: int = 1                 # redraws one refinement step is spread over (from_scene:
+                                   # VIEWPORT_SPLIT in the viewport, 1 for F12; see `split`)
 
     @property
     def enabled(self) -> bool:
@@ -103,9 +118,13 @@ class GISettings:
         a Cornell box's ceiling (18 rows at 128 px) then got one row of probes, its front-to-
         back gradient flattened (1.66x the reference's irradiance at the front, 0.72x at the
         back). bench/quality.py cornell at 128 px, 512 spp, tile 16 -> 8: relMSE 0.0179 ->
-        0.0081, SSIM 0.930 -> 0.950. From 256 px up (16 x 16) nothing changes."""
+        0.0081, SSIM 0.930 -> 0.950. From 256 px up (16 x 16) nothing changes. The viewport
+        counts the region it shows (the image x pixel_size): a Pixel Size of 2 renders a quarter
+        of the pixels and, with the preset's tile, a quarter of the probes, as Cycles and EEVEE
+        do a quarter of their work (halving the tile there kept every probe ray: Pixel Size 2
+        was 1.70x EEVEE's frame where Pixel Size 1 was 2.13x)."""
         t = max(int(self.probe_tile), 1)
-        short = min(int(width), int(height))
+        short = min(int(width), int(height)) * max(int(self.pixel_size), 1)
         while t > 8 and short < MIN_PROBES_ACROSS * t:
             t //= 2
         return t
@@ -120,9 +139,18 @@ class GISettings:
         0.0081 (SSIM 0.928 / 0.941 / 0.950), for 0.44x / 0.80x of cornell's F12 time."""
         r = max(int(self.probe_res), 1)
         t = self.probe_tile_for(width, height)
-        if t >= self.probe_tile:
-            return r
-        return min(r, max(MIN_PROBE_RES, r * t // max(int(self.probe_tile), 1)))
+        if t < self.probe_tile:
+            r = min(r, max(MIN_PROBE_RES, r * t // max(int(self.probe_tile), 1)))
+        return r
+
+    @property
+    def split_step(self) -> int:
+        """sqrt(split): the side of the pixel blocks the viewport integrates one pixel of per
+        redraw, and of the probe texel blocks it traces one texel of."""
+        step = {1: 1, 4: 2, 16: 4}.get(int(self.split))
+        if step is None:
+            raise ValueError(f"GI split {self.split!r}: use 1, 4 or 16")
+        return step
 
     def render_sc_share(self) -> float:
         """F12: the share of the surface-cache tiles the view does not read that each iteration
@@ -157,13 +185,14 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
     d = GISettings()
     s = engine_settings
     q = getattr(s, "render_quality", d.quality)
+    extra = {}
     if viewport:
         q = getattr(s, "viewport_quality", q)
-    extra = {}
+        extra["split"] = int(getattr(s, "viewport_split", VIEWPORT_SPLIT))
     texels = int(getattr(s, "cache_texels_per_frame", CACHE_TEXELS_PER_FRAME) or 0)
     if texels > 0:
         extra["sc_tiles"] = -(-texels // 1024)
-    return settings(q, bounces=int(getattr(s, "bounces", d.bounces)),
+    out = settings(q, bounces=int(getattr(s, "bounces", d.bounces)),
                     render_frames=int(getattr(s, "render_frames", d.render_frames)),
                     aa_samples=int(getattr(s, "aa_samples", d.aa_samples)),
                     gather=str(getattr(s, "gi_gather", d.gather)),
@@ -173,3 +202,6 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
                     adaptive_probes=bool(getattr(s, "adaptive_probes", d.adaptive_probes)),
                     probe_importance=bool(getattr(s, "probe_importance", d.probe_importance)),
                     **extra)
+    if out.split > 1 and "sc_tiles" not in extra:   # the preset's budget, spread as the rest
+        out = replace(out, sc_tiles=max(out.sc_tiles // out.split, 1))
+    return out

@@ -31,6 +31,9 @@ Per frame, one GLSL pass each:
                             still has none traces 16 rays; every pixel adds the emitters
                             nearer its surface than a ray starts (sc_near_emission)
     screen_probe_temporal   mix with the history (running mean for F12, exponential in the viewport)
+    screen_probe_temporal_split  the viewport with GISettings.split > 1: one pixel of each
+                            block integrated per redraw (integrate's px_step, px_phase), its
+                            own mix by its own sample count, the others kept or filled
 Output: per-pixel indirect irradiance E (W/m^2); the composite divides by pi (Diffuse Indirect).
 Needs a GPU context.
 """
@@ -39,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import compute, radiance_cache, screen_trace
+from .gi_settings import GISettings
 from .probe_math import hammersley
 
 GBUF = ("gbuf_position", "gbuf_normal")
@@ -58,10 +62,11 @@ RAYS = compute.Pass("screen_probe_rays",
                           ('INT', 'frame'), ('INT', 'uniform_rows')))
 TRACE = compute.Pass("screen_probe_trace",
                      samplers=("probe_info", "probe_normal", "probe_rays") + screen_trace.SAMPLERS,
-                     images=("out_image", ("rc_marks", 'R32F')),
+                     images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}), ("rc_marks", 'R32F')),
                      push=(screen_trace.PUSH[0], radiance_cache.CAMERA, ('VEC2', 'ray_jitter'),
                            ('INT', 'probe_res'), ('FLOAT', 't_max'), ('INT', 'rc_frame'),
-                           screen_trace.PUSH[1]))
+                           screen_trace.PUSH[1], ('INT', 'texel_step'), ('IVEC2', 'texel_phase'),
+                           ('INT', 'texel_fill')))
 COMPOSE = compute.Pass("screen_probe_compose",
                        samplers=("probe_traced", "probe_plan", "probe_prior"),
                        images=("out_image", "probe_history_out"), push=(('INT', 'probe_res'),))
@@ -78,9 +83,14 @@ INTEGRATE = compute.Pass("screen_probe_integrate",
                          + radiance_cache.SAMPLERS,
                          images=("out_image", ("rc_marks", 'R32F')),
                          push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
-                               ('FLOAT', 't_max'), radiance_cache.CAMERA, ('INT', 'uniform_rows')))
+                               ('FLOAT', 't_max'), radiance_cache.CAMERA, ('INT', 'uniform_rows'),
+                               ('IVEC2', 'px_phase'), ('INT', 'px_step')))
 TEMPORAL = compute.Pass("screen_probe_temporal", samplers=("indirect_new", "indirect_history"),
                         push=(('FLOAT', 'blend'),))
+TEMPORAL_SPLIT = compute.Pass("screen_probe_temporal_split",
+                              samplers=("indirect_new", "indirect_history") + GBUF,
+                              push=(('VEC3', 'cam_pos'), ('INT', 'px_step'), ('INT', 'frame'),
+                                    ('FLOAT', 'history_len')))
 PIXEL_GATHER = compute.Pass("pixel_gather", samplers=GBUF,
                             push=(('VEC3', 'cam_pos'), ('INT', 'rays'), ('INT', 'frame'),
                                   ('FLOAT', 't_max')))
@@ -99,6 +109,7 @@ class ScreenProbes:
         self.prev = None             # last frame's probes (info, normal, history): the prior
         self.atlas = self.grid       # probe slots: the grid, + adaptive levels (gather)
         self.zero_rays = None        # the slot table without importance sampling (all own texel)
+        self.split_radiance = None   # the split viewport's probe texels, kept across redraws
 
     def jitter(self, frame: int):
         """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets."""
@@ -110,7 +121,7 @@ class ScreenProbes:
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
                voxels=None, rcache=None, rc_budget: int = 0, rc_blend: float = 0.25,
                rc_retrace=None, importance: bool = True, adaptive: bool = True,
-               screen=None):
+               screen=None, split: int = 1, split_frame: int = 0):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
         0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
         (None: refined on the mesh SDFs). rcache: radiance_cache.RadianceCache (None: off): rays
@@ -121,10 +132,18 @@ class ScreenProbes:
         and 4x4 pixel tiles where the uniform ones do not interpolate a pixel
         (screen_probe_adaptive), traced and filtered in the same atlas, in place of most of
         the integrate pass's per-pixel fallback rays. screen: screen_trace.ScreenTrace (None: off),
-        Lumen's first trace on the HZB before the SDFs."""
+        Lumen's first trace on the HZB before the SDFs. split (1, 4 or 16; the viewport's
+        GISettings.split): integrate only one pixel of every sqrt(split)^2 block, the one whose
+        turn it is at redraw `split_frame` since the history's reset (temporal_split fills the
+        rest), and trace one texel of every such block of the probes' octahedral maps, the
+        others kept from earlier redraws (placement held for `split` redraws)."""
         gw, gh = self.grid
         r = self.res
-        tile_j, ray_j = self.jitter(frame)
+        step = GISettings(split=split).split_step
+        if r % step:
+            raise ValueError(f"probe resolution {r} is not a multiple of the split's {step}")
+        # the split: placement and ray jitter held for `split` redraws (one per texel turn)
+        tile_j, ray_j = self.jitter(frame - split_frame + split_frame // split)
         g = gbuf["textures"]
         tex = self.textures
         tex["info"] = compute.texture((gw, gh))
@@ -152,7 +171,7 @@ class ScreenProbes:
             self.prev = None               # adaptive probes switched: no prior this frame
         self.atlas = (aw, ah)
 
-        sampled = importance and self.prev is not None and r == compute.GROUP
+        sampled = importance and self.prev is not None and r == compute.GROUP and step == 1
         if sampled:
             self._plan_rays(gbuf, cam_pos, frame)
         else:
@@ -164,9 +183,19 @@ class ScreenProbes:
                 tex.pop(k, None)
         self.sampled = sampled
 
-        tex["radiance"] = compute.texture((aw * r, ah * r))
+        fill = step > 1 and (split_frame == 0 or self.split_radiance is None
+                             or self.split_radiance.width != aw * r
+                             or self.split_radiance.height != ah * r)
+        if step == 1:
+            tex["radiance"] = compute.texture((aw * r, ah * r))
+        else:          # kept across redraws: each traces one texel of every 2x2 block
+            if fill:
+                self.split_radiance = compute.texture((aw * r, ah * r))
+            tex["radiance"] = self.split_radiance
         tracers = dict(scene=resources, cache=cache, gsdf=gsdf, sky=sky, voxels=voxels)
-        TRACE.run((aw * r, ah * r), **tracers, probe_info=tex["info"],
+        TRACE.run((aw * r // step, ah * r // step), **tracers, probe_info=tex["info"],
+                  texel_step=step, texel_phase=split_phase_pixel(split_frame % split, step),
+                  texel_fill=int(fill),
                   probe_normal=tex["normal"], probe_rays=tex["rays"], probe_res=r,
                   ray_jitter=ray_j, t_max=float(t_max), out_image=tex["radiance"],
                   **(screen.inputs() if screen is not None else screen_trace.off_inputs(gbuf)),
@@ -202,7 +231,9 @@ class ScreenProbes:
                ray_jitter=ray_j, out_image=tex["sh"])
 
         tex["integrated"] = compute.texture((self.width, self.height))
-        INTEGRATE.run((self.width, self.height), **tracers, frame=int(frame), t_max=float(t_max),
+        step = GISettings(split=split).split_step
+        INTEGRATE.run((-(-self.width // step), -(-self.height // step)), **tracers,
+                      px_step=step, px_phase=split_phase_pixel(split_frame % split, step), frame=int(frame), t_max=float(t_max),
                       gbuf_position=gpos, gbuf_normal=gnor, probe_info=tex["info"],
                       probe_normal=tex["normal"], probe_sh=tex["sh"], cam_pos=cam,
                       probe_tile=self.tile, uniform_rows=gh if adaptive else 0,
@@ -240,6 +271,22 @@ class ScreenProbes:
         self.history, self.frames = out, self.frames + 1
         return out
 
+    def temporal_split(self, new, gbuf: dict, cam_pos, split: int, history_len: float):
+        """The viewport's history when each redraw integrates 1 / split of the pixels
+        (screen_probe_temporal_split.comp.glsl): per pixel, its own running-then-exponential
+        mean over its own turns; a pixel not yet integrated since the reset is filled from
+        this redraw's integrated neighbours. self.frames counts redraws since the reset."""
+        frame = self.frames if self.history is not None else 0
+        out = compute.texture((self.width, self.height))
+        g = gbuf["textures"]
+        TEMPORAL_SPLIT.run((self.width, self.height), indirect_new=new,
+                           indirect_history=self.history if frame else new,
+                           gbuf_position=g["position"], gbuf_normal=g["normal"],
+                           cam_pos=compute.vec(cam_pos), px_step=GISettings(split=split).split_step,
+                           frame=int(frame), history_len=float(history_len), out_image=out)
+        self.history, self.frames = out, frame + 1
+        return out
+
     def stats(self) -> dict:
         """GPU bytes of the probe textures (RGBA32F, the links R32F) and the history."""
         seen, out = set(), {}
@@ -250,6 +297,23 @@ class ScreenProbes:
         if self.history is not None:
             out["probes_history"] = self.width * self.height * 16
         return out
+
+
+def split_phase(x, y, step: int):
+    """The redraw (mod step^2) on which block pixel (x, y) is integrated: Bayer order (0 3 / 2 1
+    for a 2x2 block), the twin of screen_probe_temporal_split.comp.glsl's split_phase."""
+    x, y = np.asarray(x), np.asarray(y)
+    b = 2 * ((x & 1) ^ (y & 1)) + (y & 1)
+    if step <= 2:
+        return b
+    return 4 * b + 2 * (((x >> 1) & 1) ^ ((y >> 1) & 1)) + ((y >> 1) & 1)
+
+
+def split_phase_pixel(phase: int, step: int):
+    """The block pixel (x, y) integrated on a redraw of the given phase."""
+    ys, xs = np.mgrid[0:step, 0:step]
+    k = np.flatnonzero(split_phase(xs, ys, step).ravel() == phase)[0]
+    return int(xs.ravel()[k]), int(ys.ravel()[k])
 
 
 def pixel_gather(resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,

@@ -193,6 +193,7 @@ class RENDER_PT_lumen_gi_viewport(_RenderPanel, bpy.types.Panel):
         layout, s = self.begin(context)
         col = layout.column()
         col.prop(s, "viewport_quality", text="Quality")
+        col.prop(s, "viewport_split")
         col.prop(s, "cache_texels_per_frame")
         # Blender's own viewport setting, which Cycles and EEVEE use too
         col.prop(context.scene.render, "preview_pixel_size", text="Pixel Size")

@@ -20,7 +20,7 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, P
                        StringProperty)
 
 from ..gpu_shaders.gi_methods import MethodSettings
-from ..gpu_shaders.gi_settings import CACHE_TEXELS_PER_FRAME, GISettings
+from ..gpu_shaders.gi_settings import CACHE_TEXELS_PER_FRAME, VIEWPORT_SPLIT, GISettings
 from ..lumen_addon.bake import BakeSettings, ObjectInput
 from ..lumen_addon.sdf import HARD_MAX_RESOLUTION
 
@@ -40,6 +40,15 @@ GI_QUALITY_ITEMS = (
     ('MEDIUM', "Medium", "Balanced detail and speed"),
     ('HIGH', "High", "Four times Medium's bounced-light samples across the screen: sharper "
      "around small objects and where they touch, slower"))
+
+
+VIEWPORT_SPLIT_ITEMS = (
+    ('1', "Every Redraw", "Each redraw updates the bounced light of every pixel: slowest redraws, "
+     "fewest of them to a clean image"),
+    ('4', "4 Redraws", "Each redraw updates a quarter of the pixels and of the probes' rays: "
+     "redraws about three times faster, four times as many of them to the same image"),
+    ('16', "16 Redraws", "Each redraw updates a sixteenth: the fastest redraws for big viewports "
+     "and slow machines, the slowest to refine"))
 
 
 GI_METHOD_ITEMS = (
@@ -119,6 +128,12 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                     "fast, but changes in the lighting spread more slowly; 0 uses the Viewport "
                     "Quality's amount (16k, 32k or 64k texels). Final renders update all of it",
         default=CACHE_TEXELS_PER_FRAME, min=0, soft_max=1 << 20, step=1024)
+    viewport_split: EnumProperty(
+        name="Spread over",
+        description="Viewport only: over how many redraws one step of refinement is spread. "
+                    "More keeps the viewport responsive while it refines (each redraw does less) "
+                    "but takes more redraws to a clean image. Final renders do everything at once",
+        items=VIEWPORT_SPLIT_ITEMS, default=str(VIEWPORT_SPLIT))
     render_quality: EnumProperty(
         name="Render Quality",
         description="How much work a final render (F12) spends on bounced light in each of its "

@@ -50,7 +50,7 @@ def _engine_class(base):
     return _CLASSES[base]
 
 
-def _draw(engine, depsgraph, width, height, redraws, on_redraw):
+def _draw(engine, depsgraph, width, height, redraws, on_redraw, until=None):
     import bpy
     import gpu
     import mathutils
@@ -86,6 +86,8 @@ def _draw(engine, depsgraph, width, height, redraws, on_redraw):
                 engine.view_draw(ctx, depsgraph)
                 seconds.append(time.perf_counter() - t)
             after.append(on_redraw(i) if on_redraw else None)
+            if until is not None and until(i):
+                break
             if on_redraw:
                 depsgraph.update()    # as the viewport re-evaluates what on_redraw edited
     finally:
@@ -97,16 +99,18 @@ def _draw(engine, depsgraph, width, height, redraws, on_redraw):
     return {"drawn": drawn, "seconds": seconds, "after": after}
 
 
-def run(scene, base, width: int, height: int, redraws: int = 1, on_redraw=None) -> dict:
+def run(scene, base, width: int, height: int, redraws: int = 1, on_redraw=None,
+        until=None) -> dict:
     """`redraws` view_draw calls of engine class `base` for the scene camera's view at
-    width x height (see the module docstring). Raises RuntimeError with the traceback on failure."""
+    width x height (see the module docstring); `until(i)`, called after redraw i (and its
+    on_redraw), ends them early when true. Raises RuntimeError with the traceback on failure."""
     import bpy
 
     cls = _engine_class(base)
     before = scene.render.engine
     _JOB.clear()
     _JOB["args"] = dict(width=int(width), height=int(height), redraws=int(redraws),
-                        on_redraw=on_redraw)
+                        on_redraw=on_redraw, until=until)
     scene.render.engine = cls.bl_idname
     try:
         bpy.ops.render.render()

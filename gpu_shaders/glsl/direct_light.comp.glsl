@@ -9,9 +9,12 @@
  * (RGBA32F, 4 texels per light row, operators/lights.py; a sun taken out of the world's map is
  * one of them), sky_maps (the world), push constants light_count, cam_pos (world), sky_cones
  * (number of sky occlusion cones), inv_view_proj (camera rays for the background),
- * sample_plan = light_samples + 256 * first + 65536 * take: samples per light, and the part of
- * them and of the sky cones this dispatch evaluates (first 0, take light_samples: all; one int
- * keeps the push constants within 128 bytes).
+ * sample_plan = light_samples + 256 * first + 65536 * take + 16777216 * mode: samples per light,
+ * and the part of them and of the sky cones this dispatch evaluates (first 0, take light_samples:
+ * all; one int keeps the push constants within 128 bytes); mode 1 also stores the one-sample
+ * lights' (suns, lights without radius: light_single) E in single_out, mode 2 reads it from
+ * single_in instead of evaluating them again (the viewport's later parts: every part of such a
+ * light is the whole light, direct_light.Progressive).
  * Outputs (RGBA32F):
  *   direct_out:   Cycles' "Diffuse Direct" convention: E / pi, E the direct irradiance from the
  *                 lights and the sky (a Lambert BSDF without its albedo); 0 on the background
@@ -92,11 +95,25 @@ void main()
   }
   int light_samples = sample_plan % 256;
   int sample_first = (sample_plan / 256) % 256;
-  int sample_take = sample_plan / 65536;
+  int sample_take = (sample_plan / 65536) % 256;
+  int mode = sample_plan / 16777216;
   vec3 E = vec3(0.0);
+  vec3 E_single = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
-    E += light_irradiance_part(i, p, n, light_samples, light_rotation(px), sample_first,
-                               sample_take);
+    bool single = mode > 0 && light_single(i);
+    if (single && mode == 2) {
+      continue;
+    }
+    vec3 e = light_irradiance_part(i, p, n, light_samples, light_rotation(px), sample_first,
+                                   sample_take);
+    E += e;
+    E_single += single ? e : vec3(0.0);
+  }
+  if (mode == 1) {
+    imageStore(single_out, px, vec4(E_single, 1.0));
+  }
+  else if (mode == 2) {
+    E += texelFetch(single_in, px, 0).rgb;
   }
   if (sky_cones > 0) {
     E += sky_light(p, n, sky_cones, sample_first, sample_take);

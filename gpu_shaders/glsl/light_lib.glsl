@@ -125,6 +125,14 @@ vec2 light_rotation(ivec2 px)
  * where one cone over the whole light darkens from the edge outwards only. */
 vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int first, int take);
 
+/* true for a light whose every part is the whole light (a sun, a light without radius): the
+ * viewport's progressive direct light evaluates it once, not once per part */
+bool light_single(int i)
+{
+  vec4 t0 = light_texel(i, 0);
+  return int(t0.x + 0.5) == 0 || light_texel(i, 1).w <= 0.005;
+}
+
 vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
 {
   return light_irradiance_part(i, p, n, samples, rot, 0, samples);

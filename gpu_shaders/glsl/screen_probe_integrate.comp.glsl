@@ -27,12 +27,14 @@
  * any probe ray starts (an emissive panel under a ceiling lights the ceiling around it).
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0.5 adaptive, 0 fallback
  * (the visible uniform probes' bilinear weights or FALLBACK_RAYS rays), -1 background.
+ * The viewport integrates one pixel of every px_step x px_step block per redraw (px_phase: which;
+ * the dispatch covers the image / px_step): screen_probe_temporal_split fills the others.
  */
 #define FALLBACK_RAYS 16
 
 void main()
 {
-  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy) * px_step + px_phase;
   ivec2 size = imageSize(out_image);
   if (px.x >= size.x || px.y >= size.y) {
     return;

@@ -21,9 +21,29 @@
  * Output out_image (probe atlas, probe (i, j) at texels [i*res, (i+1)*res) x [j*res, ...)):
  * radiance rgb, a = hit distance (t_max on a miss, -1 where there is no probe, -2 to resolve).
  */
+/* texel_step 2 (the viewport's split, GISettings.split 4): the dispatch covers the atlas / 2 and
+ * traces one texel of every 2x2 block (texel_phase); the others keep earlier redraws' rays of the
+ * same probe slot (the same screen tile). The ray also goes into those of its block that hold no
+ * ray (w -1: the slot had no probe then) and, with texel_fill 1 (the first redraw after a
+ * reset), into the whole block: a first frame's probes are whole at a quarter of the rays. */
+void split_store(ivec2 tx, vec4 v)
+{
+  imageStore(out_image, tx, v);
+  if (texel_step == 1) {
+    return;
+  }
+  ivec2 b = tx - texel_phase;
+  for (int k = 0; k < texel_step * texel_step; k++) {
+    ivec2 q = b + ivec2(k % texel_step, k / texel_step);
+    if (q != tx && (texel_fill != 0 || imageLoad(out_image, q).w == -1.0)) {
+      imageStore(out_image, q, v);
+    }
+  }
+}
+
 void main()
 {
-  ivec2 tx = ivec2(gl_GlobalInvocationID.xy);
+  ivec2 tx = ivec2(gl_GlobalInvocationID.xy) * texel_step + texel_phase;
   ivec2 size = imageSize(out_image);
   if (tx.x >= size.x || tx.y >= size.y) {
     return;
@@ -32,7 +52,7 @@ void main()
   ivec2 texel = tx - pr * probe_res;
   vec4 info = texelFetch(probe_info, pr, 0);
   if (info.w <= 0.0) {
-    imageStore(out_image, tx, vec4(0.0, 0.0, 0.0, -1.0));
+    split_store(tx, vec4(0.0, 0.0, 0.0, -1.0));
     return;
   }
   vec3 n = texelFetch(probe_normal, pr, 0).xyz;
@@ -48,8 +68,8 @@ void main()
   vec3 L = lumen_radiance(o, dir, tmax, t, kind);
   if (tmax < t_max && t >= tmax) {
     rc_mark(o, k, rc_frame);
-    imageStore(out_image, tx, vec4(0.0, 0.0, 0.0, -2.0));
+    split_store(tx, vec4(0.0, 0.0, 0.0, -2.0));
     return;
   }
-  imageStore(out_image, tx, vec4(L, t));
+  split_store(tx, vec4(L, t));
 }

@@ -25,6 +25,7 @@ ALIASES = {"viewport_quality": ("GISettings.quality", GI.quality),
            "gi_method": ("MethodSettings.method", METHOD.method),
            "cache_texels_per_frame": ("gi_settings.CACHE_TEXELS_PER_FRAME",
                                       gi_settings.CACHE_TEXELS_PER_FRAME),
+           "viewport_split": ("gi_settings.VIEWPORT_SPLIT", str(gi_settings.VIEWPORT_SPLIT)),
            "cache_dir": ("properties.DEFAULT_CACHE_DIR", properties.DEFAULT_CACHE_DIR)}
 NO_DATACLASS = {"debug_view"}           # only the UI has it; the engine's fallback is COMBINED
 OBJECT = {f.name: f.default for f in fields(ObjectInput)}
@@ -62,7 +63,8 @@ method, notes = gi_methods.from_scene(scene.lumen.engine)
 emit(rows=rows, unmapped=unmapped, notes=notes,
      gi=[asdict(gi_settings.from_scene(scene.lumen.engine)), asdict(gi_settings.settings())],
      gi_viewport=[asdict(gi_settings.from_scene(scene.lumen.engine, viewport=True)),
-                  asdict(gi_settings.settings())],
+                  asdict(gi_settings.settings(split=gi_settings.VIEWPORT_SPLIT,
+                                              sc_tiles=GI.sc_tiles // gi_settings.VIEWPORT_SPLIT))],
      method=[asdict(method), asdict(METHOD)], bake=[asdict(settings_from(scene)), asdict(BAKE)],
      groups=sorted(p.identifier for p in scene.lumen.bl_rna.properties
                    if p.identifier not in ("rna_type", "name")))

@@ -55,7 +55,7 @@ def state(i):
                 aa=R.get("aa_progress"))
 
 results = {{}}
-for label, ps, redraws in (("full", "1", 24), ("half", "2", 2)):
+for label, ps, redraws in (("full", "1", 50), ("half", "2", 2)):
     scene.render.preview_pixel_size = ps
     out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, redraws, state)
     results[label] = out["after"]
