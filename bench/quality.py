@@ -743,6 +743,8 @@ def parse_args(argv=None):
     ap.add_argument("--quick", action="store_true",
                     help="smoke run: --size 64 --cycles-samples 64 --scenes cornell")
     ap.add_argument("--verbose", action="store_true", help="Blender's render output to the terminal")
+    ap.add_argument("--keep-exr", action="store_true",
+                    help="keep every engine's <out>/<scene>_<engine>.exr (for bench/ssim_map.py)")
     args = ap.parse_args(argv)
     if args.quick:
         args.size, args.cycles_samples, args.scenes = 64, 64, "cornell"
@@ -870,7 +872,7 @@ def main(argv=None):
                 f"{', '.join(args.engines)}){' ' + err if err else ''}")
         for eng in args.engines:        # the per-engine EXRs are scratch (the reference is cached)
             p = out / f"{name}_{eng}.exr"
-            if eng != "cycles_ref" and p.exists():
+            if eng != "cycles_ref" and p.exists() and not args.keep_exr:
                 p.unlink()
         write_results(out, args, env, rows, time.perf_counter() - start)
     if len(args.scenes) > 1:

@@ -1,7 +1,10 @@
 """Anti-aliasing of F12 renders: the image is the mean of `samples` G-buffers drawn with the
 camera moved by a fraction of a pixel, as Cycles and EEVEE filter theirs (Blackman-Harris of the
 scene's Film > Filter Size, 1.5 px by default, importance-sampled separably in x and y as Cycles
-does, so every sample weighs the same).
+does, so every sample weighs the same). Cycles' Blackman-Harris spans twice the filter size
+(intern/cycles/scene/film.cpp: filter_table doubles the width: 3 px across at 1.5), and so do
+these jitters: over 1.5 px across the image was sharper than Cycles' (edges, texture detail:
+bench/ssim_map.py on `textured`, local contrast 1.2-1.3x the reference's).
 
 Why: with one G-buffer sample per pixel every edge is a staircase, and against a path tracer's
 filtered image an edge pixel that is all floor where the reference is half floor and half
@@ -39,10 +42,18 @@ def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
     return 0.35875 - 0.48829 * np.cos(a) + 0.14128 * np.cos(2 * a) - 0.01168 * np.cos(3 * a)
 
 
-def jitters(samples: int, width: float = 1.5) -> np.ndarray:
-    """float64 [samples, 2]: pixel offsets distributed as the Blackman-Harris filter of `width`
-    pixels, separably (inverse CDF of a 1D table applied to a Hammersley set)."""
+def filter_span(filter_size: float) -> float:
+    """The width in pixels, across, of the Blackman-Harris window of a Film > Filter Size: twice
+    the size, as Cycles builds its filter table (film.cpp: `width *= 2.0f`)."""
+    return 2.0 * float(filter_size)
+
+
+def jitters(samples: int, filter_size: float = 1.5) -> np.ndarray:
+    """float64 [samples, 2]: pixel offsets distributed as Cycles' Blackman-Harris pixel filter of
+    Filter Size `filter_size` (filter_span: 3 px across at 1.5), separably (inverse CDF of a 1D
+    table applied to a Hammersley set)."""
     n = max(int(samples), 1)
+    width = filter_span(filter_size)
     xs = np.linspace(-width / 2, width / 2, 1025)
     cdf = np.concatenate([[0.0], np.cumsum(0.5 * (blackman_harris(xs[1:], width)
                                                   + blackman_harris(xs[:-1], width))
@@ -154,13 +165,13 @@ def add_sample(acc: Supersampler, state, base: dict, e_indirect, lights, sky, ca
 
 
 def supersample(state, base: dict, textures: dict, e_indirect, lights, sky, cam_pos, view_proj,
-                width: int, height: int, samples: int, filter_width: float, sky_cones: int) -> dict:
+                width: int, height: int, samples: int, filter_size: float, sky_cones: int) -> dict:
     """F12: the anti-aliased passes ({name: texture} for Supersampler.NAMES) of a frame whose
     unjittered G-buffer is `base`, passes `textures` and indirect irradiance `e_indirect` (None:
     GI off). Returns {'textures', 'seconds', 'samples'}."""
     t0 = time.perf_counter()
     acc = Supersampler(width, height)
-    for k, jitter in enumerate(jitters(samples, filter_width)):
+    for k, jitter in enumerate(jitters(samples, filter_size)):
         add_sample(acc, state, base, e_indirect, lights, sky, cam_pos, view_proj, jitter,
                    sky_cones, k, samples)
     result = dict(textures)
@@ -181,13 +192,13 @@ class Progressive:
         return self.acc.count if self.acc is not None else 0
 
     def step(self, key, state, base: dict, textures: dict, e_indirect, lights, sky, cam_pos,
-             view_proj, width: int, height: int, samples: int, filter_width: float,
+             view_proj, width: int, height: int, samples: int, filter_size: float,
              sky_cones: int) -> dict:
         """This redraw's passes: the running mean after one more sample (none once `samples`
         are in)."""
         if key != self.key or self.acc is None:
             self.key, self.acc = key, Supersampler(width, height)
-        marks = jitters(samples, filter_width)
+        marks = jitters(samples, filter_size)
         if self.acc.count < len(marks):
             add_sample(self.acc, state, base, e_indirect, lights, sky, cam_pos, view_proj,
                        marks[self.acc.count], sky_cones, self.acc.count, samples)

@@ -1,7 +1,7 @@
 """F12 anti-aliasing (gpu_shaders/antialias.py, glsl/aa_resolve.comp.glsl).
 
-- numpy: the jitters are distributed as the Blackman-Harris filter (mean 0, the filter's
-  variance, inside its width); a jittered view_proj moves every point's pixel position by the
+- numpy: the jitters are distributed as Cycles' Blackman-Harris filter (mean 0, the filter's
+  variance, inside its span: twice the Filter Size, as Cycles' film.cpp builds it); a jittered view_proj moves every point's pixel position by the
   jitter exactly; the samples' shares of the direct light's strata cover all 8 of them.
 - An emissive half-plane seen by an orthographic camera with its edge through the centres of
   one pixel column (GI Off, black world): without anti-aliasing the image is a hard step (0 or
@@ -41,8 +41,10 @@ def _antialias():
 
 def test_jitters_follow_the_filter():
     aa = _antialias()
-    width = 1.5
-    j = aa.jitters(64, width)
+    size = 1.5
+    width = aa.filter_span(size)
+    assert width == 3.0            # Cycles: filter_table(FILTER_BLACKMAN_HARRIS, w) doubles w
+    j = aa.jitters(64, size)
     assert j.shape == (64, 2)
     assert np.abs(j).max() <= width / 2
     xs = np.linspace(-width / 2, width / 2, 20001)
