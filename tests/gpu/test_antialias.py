@@ -55,6 +55,23 @@ def test_jitters_follow_the_filter():
     np.testing.assert_allclose(np.sort(j[:, 0]), -np.sort(j[:, 0])[::-1], atol=1e-9)  # symmetric
 
 
+def test_jitters_filter_every_edge_orientation_alike():
+    """The jitters' spread is the same across edges of any orientation: Hammersley's 8 points
+    (4 of them on one diagonal) spread 0.50 px across one diagonal and 0.22 px across the other;
+    each axis still takes every stratum of the filter once."""
+    aa = _antialias()
+    for n in (4, 8, 16, 32):
+        j = aa.jitters(n, 1.5)
+        assert aa.anisotropy(j) < 1.15, (n, aa.anisotropy(j))
+        u = aa.stratified_set(n)
+        for axis in (0, 1):
+            np.testing.assert_allclose(np.sort(u[:, axis]), (np.arange(n) + 0.5) / n)
+    assert aa.anisotropy(aa.jitters(8, 1.5)) < 1.01
+    from aa_pkg.probe_math import hammersley
+    h = (hammersley(8) + 0.5 / 8) % 1.0 - 0.5
+    assert aa.anisotropy(h) > 1.5                   # what the old pairing did (1.9)
+
+
 def test_light_parts_cover_every_stratum():
     aa = _antialias()
     for samples, take in ((1, 8), (2, 4), (4, 2), (8, 1), (3, 2), (16, 1)):
