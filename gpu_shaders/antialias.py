@@ -34,7 +34,6 @@ import time
 import numpy as np
 
 
-
 def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
     """Blackman-Harris window over [-width/2, width/2] (Cycles' default pixel filter)."""
     t = np.clip(np.asarray(x, np.float64) / max(width, 1e-6) + 0.5, 0.0, 1.0)
