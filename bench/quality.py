@@ -5,7 +5,7 @@
         eevee_volume,lumen,lumen_high,lumen_ssgi,lumen_rsm,lumen_lpv,lumen_vxgi,lumen_off,
         lumen_rc,lumen_noscreen,lumen_screen,lumen_noaa,
         lumen_noadaptive] [--out out/quality]
-        [--quick] [--verbose]
+        [--quick] [--verbose] [--keep-exr]
 
 Scenes (bench/quality_scenes.py, built in code, pure Lambert materials): `cornell` (area light
 in a Cornell box), `window` (a closed room lit by a sun through one window), `thin` (a closed
@@ -63,7 +63,8 @@ images (a row per scene); <out>/<scene>.png shows the engines side
 by side (left to right in the order printed), each exposure-normalised by the reference's mean
 luminance, Reinhard-mapped and sRGB-encoded the same way. Blender's own render output goes to
 <out>/blender.log (--verbose: to the terminal). An engine that fails is reported in its row and
-the others continue. --quick: 64x64, 64 Cycles samples, cornell only (a smoke run).
+the others continue. --quick: 64x64, 64 Cycles samples, cornell only (a smoke run). --keep-exr
+keeps every engine's <out>/<scene>_<engine>.exr (bench/ssim_map.py reads them).
 """
 from __future__ import annotations
 
@@ -743,6 +744,8 @@ def parse_args(argv=None):
     ap.add_argument("--quick", action="store_true",
                     help="smoke run: --size 64 --cycles-samples 64 --scenes cornell")
     ap.add_argument("--verbose", action="store_true", help="Blender's render output to the terminal")
+    ap.add_argument("--keep-exr", action="store_true",
+                    help="keep every engine's <out>/<scene>_<engine>.exr (for bench/ssim_map.py)")
     args = ap.parse_args(argv)
     if args.quick:
         args.size, args.cycles_samples, args.scenes = 64, 64, "cornell"
@@ -870,7 +873,7 @@ def main(argv=None):
                 f"{', '.join(args.engines)}){' ' + err if err else ''}")
         for eng in args.engines:        # the per-engine EXRs are scratch (the reference is cached)
             p = out / f"{name}_{eng}.exr"
-            if eng != "cycles_ref" and p.exists():
+            if eng != "cycles_ref" and p.exists() and not args.keep_exr:
                 p.unlink()
         write_results(out, args, env, rows, time.perf_counter() - start)
     if len(args.scenes) > 1:

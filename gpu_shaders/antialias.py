@@ -1,7 +1,10 @@
 """Anti-aliasing of F12 renders: the image is the mean of `samples` G-buffers drawn with the
 camera moved by a fraction of a pixel, as Cycles and EEVEE filter theirs (Blackman-Harris of the
 scene's Film > Filter Size, 1.5 px by default, importance-sampled separably in x and y as Cycles
-does, so every sample weighs the same).
+does, so every sample weighs the same). Cycles' Blackman-Harris spans twice the filter size
+(intern/cycles/scene/film.cpp: filter_table doubles the width: 3 px across at 1.5), and so do
+these jitters: over 1.5 px across the image was sharper than Cycles' (edges, texture detail:
+bench/ssim_map.py on `textured`, local contrast 1.2-1.3x the reference's).
 
 Why: with one G-buffer sample per pixel every edge is a staircase, and against a path tracer's
 filtered image an edge pixel that is all floor where the reference is half floor and half
@@ -14,7 +17,7 @@ pass) and two full-screen passes run:
     mesh_batches.draw     the sample's G-buffer (view_proj moved by the jitter)
     direct_light.shade    its direct light
     aa_resolve            its E_indirect: the frame's E from the unjittered pixels around it that
-                          show the same surface (glsl/aa_resolve.comp.glsl)
+                          show the same surface, no wall between (glsl/aa_resolve.comp.glsl)
     composite             its Combined and Diffuse Indirect
     gi_accumulate         running means of Combined, Diffuse Direct, Diffuse Indirect, Diffuse Color
 
@@ -24,12 +27,11 @@ redraw once its view has converged (Progressive).
 """
 from __future__ import annotations
 
+import functools
 import math
 import time
 
 import numpy as np
-
-from .probe_math import hammersley
 
 
 def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
@@ -39,17 +41,68 @@ def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
     return 0.35875 - 0.48829 * np.cos(a) + 0.14128 * np.cos(2 * a) - 0.01168 * np.cos(3 * a)
 
 
-def jitters(samples: int, width: float = 1.5) -> np.ndarray:
-    """float64 [samples, 2]: pixel offsets distributed as the Blackman-Harris filter of `width`
-    pixels, separably (inverse CDF of a 1D table applied to a Hammersley set)."""
+def filter_span(filter_size: float) -> float:
+    """The width in pixels, across, of the Blackman-Harris window of a Film > Filter Size: twice
+    the size, as Cycles builds its filter table (film.cpp: `width *= 2.0f`)."""
+    return 2.0 * float(filter_size)
+
+
+def jitters(samples: int, filter_size: float = 1.5) -> np.ndarray:
+    """float64 [samples, 2]: pixel offsets distributed as Cycles' Blackman-Harris pixel filter of
+    Filter Size `filter_size` (filter_span: 3 px across at 1.5), separably (inverse CDF of a 1D
+    table applied to stratified_set; cached: the viewport asks every redraw)."""
+    return _jitters(max(int(samples), 1), float(filter_size)).copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _jitters(samples: int, filter_size: float) -> np.ndarray:
     n = max(int(samples), 1)
+    width = filter_span(filter_size)
     xs = np.linspace(-width / 2, width / 2, 1025)
     cdf = np.concatenate([[0.0], np.cumsum(0.5 * (blackman_harris(xs[1:], width)
                                                   + blackman_harris(xs[:-1], width))
                                            * np.diff(xs))])
     cdf /= cdf[-1]
-    u = (hammersley(n) + 0.5 / n) % 1.0 if n > 1 else np.full((1, 2), 0.5)
-    return np.interp(u, cdf, xs)
+    return np.interp(stratified_set(n, lambda u: np.interp(u, cdf, xs)), cdf, xs)
+
+
+def anisotropy(points: np.ndarray, directions: int = 24) -> float:
+    """max / min over directions of the standard deviation of the points projected on them: 1
+    for a set that filters edges of every orientation alike."""
+    a = np.linspace(0.0, np.pi, directions, endpoint=False)
+    std = (np.asarray(points, np.float64) @ np.stack([np.cos(a), np.sin(a)])).std(axis=0)
+    return float(std.max() / max(std.min(), 1e-12))
+
+
+def stratified_set(n: int, warp=None) -> np.ndarray:
+    """float64 [n, 2] in (0, 1)^2: x and y each take every (i + 0.5) / n once (the filter's
+    marginals exactly), paired by the permutation (every one up to 8 points, else the rank-1
+    lattices y = k x mod n) whose set, mapped by `warp` (the filter's inverse CDF), is the most
+    isotropic, then the widest spaced. Hammersley's pairing put half of 8 points on one diagonal
+    (the bit reversal of 0, 2, 5, 7): an edge along the other diagonal was blurred over 2.3x the
+    width of one along it (std 0.50 against 0.22 px at Filter Size 1.5)."""
+    from itertools import permutations
+    from math import gcd
+
+    n = max(int(n), 1)
+    if n == 1:
+        return np.full((1, 2), 0.5)
+    if n <= 8:
+        perms = np.array(list(permutations(range(n))))
+    else:
+        perms = np.array([(k * np.arange(n)) % n for k in range(1, n) if gcd(k, n) == 1])
+    x = (np.arange(n) + 0.5) / n
+    y = (perms + 0.5) / n                                   # [candidates, n]
+    wx = warp(x) if warp is not None else x - 0.5
+    wy = warp(y) if warp is not None else y - 0.5
+    a = np.linspace(0.0, np.pi, 24, endpoint=False)
+    proj = wx[None, :, None] * np.cos(a) + wy[:, :, None] * np.sin(a)   # [candidates, n, dirs]
+    std = proj.std(axis=1)
+    aniso = np.round(std.max(axis=1) / np.maximum(std.min(axis=1), 1e-12), 6)
+    dist = np.sqrt((wx[None, :, None] - wx[None, None, :]) ** 2
+                   + (wy[:, :, None] - wy[:, None, :]) ** 2) + np.eye(n) * 1e9
+    order = np.lexsort((-dist.min(axis=(1, 2)), aniso))
+    return np.stack([x, y[order[0]]], axis=1)
 
 
 def jittered(view_proj, dx: float, dy: float, width: int, height: int) -> np.ndarray:
@@ -100,8 +153,8 @@ class Supersampler:
                                                  self.width, self.height, 0)
 
 
-def resolve_indirect(gbuf: dict, base: dict, e_base, jitter, foot, cam_pos, width: int,
-                     height: int):
+def resolve_indirect(resources, gbuf: dict, base: dict, e_base, jitter, foot, cam_pos,
+                     width: int, height: int):
     """glsl/aa_resolve.comp.glsl: E at a jittered sample's pixels from the frame's E."""
     from . import compute
 
@@ -109,7 +162,7 @@ def resolve_indirect(gbuf: dict, base: dict, e_base, jitter, foot, cam_pos, widt
     resolve = compute.Pass("aa_resolve", samplers=("gbuf_position", "gbuf_normal", "base_position",
                                                    "base_normal", "e_base"),
                            push=(('VEC3', 'cam_pos'), ('VEC2', 'jitter'), ('VEC2', 'footprint')))
-    resolve.run((width, height), gbuf_position=gbuf["textures"]["position"],
+    resolve.run((width, height), scene=resources, gbuf_position=gbuf["textures"]["position"],
                 gbuf_normal=gbuf["textures"]["normal"], base_position=base["textures"]["position"],
                 base_normal=base["textures"]["normal"], e_base=e_base, cam_pos=compute.vec(cam_pos),
                 jitter=compute.vec(jitter, 2), footprint=compute.vec(foot, 2), out_image=out)
@@ -145,7 +198,8 @@ def add_sample(acc: Supersampler, state, base: dict, e_indirect, lights, sky, ca
               "Diffuse Direct": out["textures"]["direct"],
               "Diffuse Color": gbuf["textures"]["albedo"]}
     if e_indirect is not None:
-        e = resolve_indirect(gbuf, base, e_indirect, (dx, dy), foot, cam_pos, width, height)
+        e = resolve_indirect(state.resources, gbuf, base, e_indirect, (dx, dy), foot, cam_pos,
+                             width, height)
         comp = composite.composite(gbuf, out["textures"]["direct"], e, sky, inv_vp, width,
                                    height)
         sample["Combined"] = comp["textures"]["combined"]
@@ -154,13 +208,13 @@ def add_sample(acc: Supersampler, state, base: dict, e_indirect, lights, sky, ca
 
 
 def supersample(state, base: dict, textures: dict, e_indirect, lights, sky, cam_pos, view_proj,
-                width: int, height: int, samples: int, filter_width: float, sky_cones: int) -> dict:
+                width: int, height: int, samples: int, filter_size: float, sky_cones: int) -> dict:
     """F12: the anti-aliased passes ({name: texture} for Supersampler.NAMES) of a frame whose
     unjittered G-buffer is `base`, passes `textures` and indirect irradiance `e_indirect` (None:
     GI off). Returns {'textures', 'seconds', 'samples'}."""
     t0 = time.perf_counter()
     acc = Supersampler(width, height)
-    for k, jitter in enumerate(jitters(samples, filter_width)):
+    for k, jitter in enumerate(jitters(samples, filter_size)):
         add_sample(acc, state, base, e_indirect, lights, sky, cam_pos, view_proj, jitter,
                    sky_cones, k, samples)
     result = dict(textures)
@@ -181,13 +235,13 @@ class Progressive:
         return self.acc.count if self.acc is not None else 0
 
     def step(self, key, state, base: dict, textures: dict, e_indirect, lights, sky, cam_pos,
-             view_proj, width: int, height: int, samples: int, filter_width: float,
+             view_proj, width: int, height: int, samples: int, filter_size: float,
              sky_cones: int) -> dict:
         """This redraw's passes: the running mean after one more sample (none once `samples`
         are in)."""
         if key != self.key or self.acc is None:
             self.key, self.acc = key, Supersampler(width, height)
-        marks = jitters(samples, filter_width)
+        marks = jitters(samples, filter_size)
         if self.acc.count < len(marks):
             add_sample(self.acc, state, base, e_indirect, lights, sky, cam_pos, view_proj,
                        marks[self.acc.count], sky_cones, self.acc.count, samples)

@@ -54,7 +54,7 @@ class GISettings:
     quality: str = "MEDIUM"        # OFF: direct light and SDF sky occlusion only
     bounces: int = 3               # surface-cache bounces an F12 render converges before gathering
     render_frames: int = 8         # F12: frames of jittered probes averaged (temporal accumulation)
-    aa_samples: int = 8            # F12: jittered G-buffers averaged (antialias.py; 1: off)
+    aa_samples: int = 32           # F12: jittered G-buffers averaged (antialias.py; 1: off)
     probe_tile: int = 16
     probe_res: int = 8
     gsdf_n: int = 48

@@ -23,8 +23,9 @@ Per frame, one GLSL pass each:
                             per probe)
     screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
                             hit-distance clamp, the links
-    screen_probe_sh         9 SH coefficients per probe (exact texel solid angles; the probe's
-                            mean projected exactly: a constant L gives pi L every frame)
+    screen_probe_sh         9 SH coefficients per probe of the hemisphere above its surface
+                            (exact texel solid angles; the hemisphere's mean projected exactly
+                            over the whole sphere: a constant L gives pi L every frame)
     screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, those a wall
                             hides left out, SH irradiance; where they fail, the adaptive probes
                             of the nearest 8x8 and 4x4 tiles on the pixel's plane; a pixel that
@@ -76,7 +77,7 @@ FILTER = compute.Pass("screen_probe_filter",
                       samplers=("probe_info", "probe_normal", "probe_radiance", "probe_links"),
                       push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
                             ('IVEC2', 'uniform_grid')))
-SH = compute.Pass("screen_probe_sh", samplers=("probe_info", "probe_filtered"),
+SH = compute.Pass("screen_probe_sh", samplers=("probe_info", "probe_normal", "probe_filtered"),
                   push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')))
 INTEGRATE = compute.Pass("screen_probe_integrate",
                          samplers=GBUF + ("probe_info", "probe_normal", "probe_sh")
@@ -227,8 +228,8 @@ class ScreenProbes:
         self.prev = {k: tex[k] for k in ("info", "normal", "history")}   # next frame's prior
 
         tex["sh"] = compute.texture((aw * 3, ah * 3))
-        SH.run((aw, ah), probe_info=tex["info"], probe_filtered=tex["filtered"], probe_res=r,
-               ray_jitter=ray_j, out_image=tex["sh"])
+        SH.run((aw, ah), probe_info=tex["info"], probe_normal=tex["normal"],
+               probe_filtered=tex["filtered"], probe_res=r, ray_jitter=ray_j, out_image=tex["sh"])
 
         tex["integrated"] = compute.texture((self.width, self.height))
         step = GISettings(split=split).split_step

@@ -1,10 +1,16 @@
+#include "sdf_lib.glsl"
+#include "sdf_ray_lib.glsl"
 #include "gbuffer_lib.glsl"
 /* Anti-aliasing, one jittered sample (antialias.py): the indirect irradiance at this sample's
  * surface points, from the frame's E (computed once on the unjittered G-buffer). Each pixel
  * takes the unjittered pixels of its 3x3 neighbourhood that show the same surface (normals
  * within ~40 degrees, the sample's point within a few pixel footprints of their plane),
  * weighted by a tent of radius one pixel around where the sample lies (pixel centre + jitter);
- * if none qualifies (a surface only this sample sees), the one whose point is nearest.
+ * if none qualifies (a surface only this sample sees), the one whose point is nearest. A pixel
+ * behind a wall from the sample's point (sdf_ray_lib.glsl's gi_visible, the thin-wall rule
+ * included) does not qualify: a floor and the ground outside its room are one plane, and with
+ * jitters across Cycles' 3 px filter the room's floor by a 1.5 cm wall took the sunlit ground's
+ * light.
  * Inputs: gbuf_position, gbuf_normal (this sample's G-buffer), base_position, base_normal,
  * e_base (the frame's); push jitter (pixels), footprint (a, b: a pixel's footprint at distance d
  * is a d + b), cam_pos. Output out_image: E (rgb), w 1 (0 on the background).
@@ -22,6 +28,10 @@ void main()
     return;
   }
   float tol = 2.0 * (footprint.x * distance(p, cam_pos) + footprint.y);
+  float h;
+  int obj;
+  sdf_scene(p, h, obj);
+  float voxel = gi_object_voxel(max(obj, 0));
   vec3 sum = vec3(0.0);
   float wsum = 0.0;
   vec3 nearest = vec3(0.0);
@@ -52,6 +62,9 @@ void main()
       }
       vec2 off = vec2(dx, dy) - jitter;
       float w = max(1.0 - abs(off.x), 0.0) * max(1.0 - abs(off.y), 0.0);
+      if (w <= 0.0 || !gi_visible(p, n, bp.xyz, bn, voxel)) {
+        continue;
+      }
       sum += w * e;
       wsum += w;
     }

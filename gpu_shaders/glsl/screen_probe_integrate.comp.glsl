@@ -31,6 +31,13 @@
  * the dispatch covers the image / px_step): screen_probe_temporal_split fills the others.
  */
 #define FALLBACK_RAYS 16
+/* A probe lights a pixel only if its normal is within ~60 degrees of the pixel's: its SH holds
+ * the radiance around its own surface (the rays below it start inside that surface's shell), so
+ * read at a normal turned far from its own it extrapolates. The plane test alone let the floor's
+ * probes by an open box's front edge light the edge's outward face, which Cycles shows black
+ * (bench/ssim_map.py: cornell's dark class). Such pixels take probes that face their way, else
+ * their own rays. */
+#define PROBE_NORMAL_MIN 0.5
 
 void main()
 {
@@ -61,8 +68,9 @@ void main()
   for (int k = 0; k < 4; k++) {
     q[k] = clamp(q[k], ivec2(0), grid - 1);
     info[k] = texelFetch(probe_info, q[k], 0);
-    valid[k] = info[k].w > 0.0 && gi_visible(p, n, info[k].xyz,
-                                             texelFetch(probe_normal, q[k], 0).xyz, voxel) ? 1.0 : 0.0;
+    vec3 nk = texelFetch(probe_normal, q[k], 0).xyz;
+    valid[k] = info[k].w > 0.0 && dot(nk, n) > PROBE_NORMAL_MIN
+               && gi_visible(p, n, info[k].xyz, nk, voxel) ? 1.0 : 0.0;
   }
   float depth = max(distance(p, cam_pos), 1e-4);
   float ok;
@@ -85,7 +93,7 @@ void main()
         ivec2 t = clamp(a0 + c, ivec2(0), extent - 1);
         ivec2 slot = origin + t;
         vec4 ai = texelFetch(probe_info, slot, 0);
-        if (ai.w <= 0.0) {
+        if (ai.w <= 0.0 || dot(texelFetch(probe_normal, slot, 0).xyz, n) <= PROBE_NORMAL_MIN) {
           continue;
         }
         float rel = abs(dot(vec4(ai.xyz, -1.0), vec4(n, dot(n, p)))) / depth;

@@ -1,7 +1,7 @@
 """F12 anti-aliasing (gpu_shaders/antialias.py, glsl/aa_resolve.comp.glsl).
 
-- numpy: the jitters are distributed as the Blackman-Harris filter (mean 0, the filter's
-  variance, inside its width); a jittered view_proj moves every point's pixel position by the
+- numpy: the jitters are distributed as Cycles' Blackman-Harris filter (mean 0, the filter's
+  variance, inside its span: twice the Filter Size, as Cycles' film.cpp builds it); a jittered view_proj moves every point's pixel position by the
   jitter exactly; the samples' shares of the direct light's strata cover all 8 of them.
 - An emissive half-plane seen by an orthographic camera with its edge through the centres of
   one pixel column (GI Off, black world): without anti-aliasing the image is a hard step (0 or
@@ -41,8 +41,10 @@ def _antialias():
 
 def test_jitters_follow_the_filter():
     aa = _antialias()
-    width = 1.5
-    j = aa.jitters(64, width)
+    size = 1.5
+    width = aa.filter_span(size)
+    assert width == 3.0            # Cycles: filter_table(FILTER_BLACKMAN_HARRIS, w) doubles w
+    j = aa.jitters(64, size)
     assert j.shape == (64, 2)
     assert np.abs(j).max() <= width / 2
     xs = np.linspace(-width / 2, width / 2, 20001)
@@ -51,6 +53,23 @@ def test_jitters_follow_the_filter():
     np.testing.assert_allclose(j.mean(axis=0), 0.0, atol=1e-3)
     np.testing.assert_allclose(j.var(axis=0), var, rtol=0.05)
     np.testing.assert_allclose(np.sort(j[:, 0]), -np.sort(j[:, 0])[::-1], atol=1e-9)  # symmetric
+
+
+def test_jitters_filter_every_edge_orientation_alike():
+    """The jitters' spread is the same across edges of any orientation: Hammersley's 8 points
+    (4 of them on one diagonal) spread 0.50 px across one diagonal and 0.22 px across the other;
+    each axis still takes every stratum of the filter once."""
+    aa = _antialias()
+    for n in (4, 8, 16, 32):
+        j = aa.jitters(n, 1.5)
+        assert aa.anisotropy(j) < 1.15, (n, aa.anisotropy(j))
+        u = aa.stratified_set(n)
+        for axis in (0, 1):
+            np.testing.assert_allclose(np.sort(u[:, axis]), (np.arange(n) + 0.5) / n)
+    assert aa.anisotropy(aa.jitters(8, 1.5)) < 1.01
+    from aa_pkg.probe_math import hammersley
+    h = (hammersley(8) + 0.5 / 8) % 1.0 - 0.5
+    assert aa.anisotropy(h) > 1.5                   # what the old pairing did (1.9)
 
 
 def test_light_parts_cover_every_stratum():
