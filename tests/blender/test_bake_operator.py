@@ -228,7 +228,7 @@ def test_panel_draws_existing_properties_and_operators(blender):
     assert r["render_eevee"] == {}                  # another engine: no Lumen GI panels
     render = {k: props(v) for k, v in r["render"].items()}
     assert render == {"RENDER_PT_lumen_gi": [],
-                      "RENDER_PT_lumen_gi_viewport": ["viewport_quality", "cache_texels_per_frame",
+                      "RENDER_PT_lumen_gi_viewport": ["viewport_quality", "viewport_split", "cache_texels_per_frame",
                                                       "preview_pixel_size"],
                       "RENDER_PT_lumen_gi_render": ["render_quality", "bounces", "render_frames",
                                                     "aa_samples"],
