@@ -90,7 +90,8 @@ TEMPORAL = compute.Pass("screen_probe_temporal", samplers=("indirect_new", "indi
                         push=(('FLOAT', 'blend'),))
 TEMPORAL_SPLIT = compute.Pass("screen_probe_temporal_split",
                               samplers=("indirect_new", "indirect_history") + GBUF,
-                              push=(('VEC3', 'cam_pos'), ('INT', 'px_step'), ('INT', 'frame'),
+                              push=(('VEC3', 'cam_pos'), ('INT', 'px_step'),
+                                    ('IVEC2', 'px_phase'), ('INT', 'frame'),
                                     ('FLOAT', 'history_len')))
 PIXEL_GATHER = compute.Pass("pixel_gather", samplers=GBUF,
                             push=(('VEC3', 'cam_pos'), ('INT', 'rays'), ('INT', 'frame'),
@@ -232,9 +233,9 @@ class ScreenProbes:
                probe_filtered=tex["filtered"], probe_res=r, ray_jitter=ray_j, out_image=tex["sh"])
 
         tex["integrated"] = compute.texture((self.width, self.height))
-        step = GISettings(split=split).split_step
         INTEGRATE.run((-(-self.width // step), -(-self.height // step)), **tracers,
-                      px_step=step, px_phase=split_phase_pixel(split_frame % split, step), frame=int(frame), t_max=float(t_max),
+                      px_step=step, px_phase=split_phase_pixel(split_frame % split, step),
+                      frame=int(frame), t_max=float(t_max),
                       gbuf_position=gpos, gbuf_normal=gnor, probe_info=tex["info"],
                       probe_normal=tex["normal"], probe_sh=tex["sh"], cam_pos=cam,
                       probe_tile=self.tile, uniform_rows=gh if adaptive else 0,
@@ -278,13 +279,15 @@ class ScreenProbes:
         mean over its own turns; a pixel not yet integrated since the reset is filled from
         this redraw's integrated neighbours. self.frames counts redraws since the reset."""
         frame = self.frames if self.history is not None else 0
+        step = GISettings(split=split).split_step
         out = compute.texture((self.width, self.height))
         g = gbuf["textures"]
         TEMPORAL_SPLIT.run((self.width, self.height), indirect_new=new,
                            indirect_history=self.history if frame else new,
                            gbuf_position=g["position"], gbuf_normal=g["normal"],
-                           cam_pos=compute.vec(cam_pos), px_step=GISettings(split=split).split_step,
-                           frame=int(frame), history_len=float(history_len), out_image=out)
+                           cam_pos=compute.vec(cam_pos), px_step=step,
+                           px_phase=split_phase_pixel(frame % split, step), frame=int(frame),
+                           history_len=float(history_len), out_image=out)
         self.history, self.frames = out, frame + 1
         return out
 

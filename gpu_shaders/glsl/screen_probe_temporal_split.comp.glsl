@@ -13,7 +13,8 @@
  *   redraw's integrated pixels around it, by plane distance (probe_interp_lib's sharpness) and
  *   normal agreement, so a first frame costs 1 / split of the integration and shows no holes.
  * Inputs: indirect_new (this redraw's integrated pixels), indirect_history (ignored at frame 0),
- * gbuf_position, gbuf_normal; cam_pos, px_step, frame, history_len.
+ * gbuf_position, gbuf_normal; cam_pos, px_step, px_phase (this redraw's integrated block pixel),
+ * frame, history_len.
  * Output out_image: E.rgb, w as the integration's (-1 background).
  */
 int split_phase(ivec2 px, int step)
@@ -56,16 +57,9 @@ void main()
     imageStore(out_image, px, texelFetch(indirect_history, px, 0));
     return;
   }
-  /* the integrated pixels of this redraw nearest px: the corners of its px_step cell */
-  ivec2 now = ivec2(0);
-  for (int y = 0; y < px_step; y++) {
-    for (int x = 0; x < px_step; x++) {
-      if (split_phase(ivec2(x, y), px_step) == frame % split) {
-        now = ivec2(x, y);
-      }
-    }
-  }
-  ivec2 base = px - ((px - now) % px_step + px_step) % px_step;
+  /* the integrated pixels of this redraw nearest px (px_phase: the block pixel integrated
+   * now): the corners of its px_step cell */
+  ivec2 base = px - ((px - px_phase) % px_step + px_step) % px_step;
   float depth = max(distance(p, cam_pos), 1e-4);
   vec4 plane = vec4(n, dot(n, p));
   vec3 sum = vec3(0.0);
