@@ -28,7 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 
-PASSES = ("screen_probe_trace", "screen_probe_integrate", "direct_light",
+PASSES = ("screen_probe_trace", "screen_probe_integrate", "screen_probe_fallback", "direct_light",
           "surface_cache_probe_trace", "screen_probe_links", "screen_probe_filter")
 
 

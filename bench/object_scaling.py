@@ -12,9 +12,13 @@ For N = 10, 100, 1000 (`--counts`) in one process, same resolution:
   F12        bpy.ops.render.render at `--size`^2, render_frames = bounces = 1 (one GI iteration),
              one warm-up then `--repeat` timed, median and split
 and the ratios N=max / N=min. Shader compilation happens in the first N's warm-ups.
+--passes: every compute dispatch timed by shader (bench/pass_profile.py's timed_dispatches; on
+llvmpipe a dispatch runs before it returns), per N the still viewport frames' medians and the
+last F12's sums, and a table of each pass at N=min against N=max, largest growth first: what
+grows with the object count.
 
     .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
-                                             [--quality MEDIUM] [--f12-max N]
+                                             [--quality MEDIUM] [--f12-max N] [--passes]
     .venv/bin/python bench/object_scaling.py --gbuffer-only [--counts ...] [--size 128]
 """
 from __future__ import annotations
@@ -23,10 +27,13 @@ import argparse
 import statistics
 import sys
 import time
+from collections import defaultdict
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
+sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
+
+import pass_profile  # noqa: E402 (bench/: per-dispatch timing)
 
 SPLIT = ("frame_seconds", "extract_seconds", "sync_seconds", "gbuffer_seconds", "direct_seconds",
          "gi_seconds")
@@ -116,6 +123,9 @@ def measure(n: int, args, tmp: Path) -> dict:
     scene.lumen.engine.render_frames = 1
     scene.lumen.engine.bounces = 1
     rows = []
+    timings = defaultdict(float)          # --passes: this redraw's or render's {pass: seconds}
+    per_draw = []
+    undo = pass_profile.timed_dispatches(timings) if args.passes else None
 
     def record(i):
         R = engine.LAST_RENDER
@@ -123,24 +133,36 @@ def measure(n: int, args, tmp: Path) -> dict:
             raise RuntimeError(R.get("traceback", R["error"]))
         rows.append(dict(split(R), meshes_read=R.get("meshes_read", -1),
                          draws=R.get("gbuffer_draws", 0), triangles=R.get("triangles", 0)))
+        per_draw.append(dict(timings))
+        timings.clear()
 
-    out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
-                               redraws=args.repeat + 1, on_redraw=record)
-    view = dict(first=out["seconds"][0] * 1000,
-                median=statistics.median(out["seconds"][1:]) * 1000, split=rows[-1],
-                first_split=rows[0])
-    if n > args.f12_max:
-        return dict(n=n, bake=bake_seconds, view=view, f12=None, triangles=rows[-1]["triangles"])
-    times = []
-    for _ in range(args.repeat + 1):
-        t = time.perf_counter()
-        bpy.ops.render.render()
-        times.append(time.perf_counter() - t)
-        if "error" in engine.LAST_RENDER:
-            raise RuntimeError(engine.LAST_RENDER.get("traceback"))
+    try:
+        out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
+                                   redraws=args.repeat + 1, on_redraw=record)
+        still = per_draw[1:] or per_draw
+        view = dict(first=out["seconds"][0] * 1000,
+                    median=statistics.median(out["seconds"][1:]) * 1000, split=rows[-1],
+                    first_split=rows[0],
+                    passes={k: statistics.median(r.get(k, 0.0) for r in still) * 1000
+                            for k in {k for r in still for k in r}})
+        if n > args.f12_max:
+            return dict(n=n, bake=bake_seconds, view=view, f12=None,
+                        triangles=rows[-1]["triangles"])
+        times = []
+        for _ in range(args.repeat + 1):
+            timings.clear()
+            t = time.perf_counter()
+            bpy.ops.render.render()
+            times.append(time.perf_counter() - t)
+            if "error" in engine.LAST_RENDER:
+                raise RuntimeError(engine.LAST_RENDER.get("traceback"))
+    finally:
+        if undo is not None:
+            undo()
     R = engine.LAST_RENDER
     f12 = dict(median=statistics.median(times[1:]) * 1000, split=split(R),
-               iterations=R.get("gi_iterations", 0), meshes_read=R.get("meshes_read", -1))
+               iterations=R.get("gi_iterations", 0), meshes_read=R.get("meshes_read", -1),
+               passes={k: v * 1000 for k, v in timings.items()})
     return dict(n=n, bake=bake_seconds, view=view, f12=f12, triangles=R.get("triangles", 0))
 
 
@@ -221,6 +243,8 @@ def main():
     ap.add_argument("--density", type=float, default=8.0, help="bake voxels per metre")
     ap.add_argument("--f12-max", type=int, default=1 << 30,
                     help="skip F12 above this many objects (a GI F12 of 1,000 takes hours)")
+    ap.add_argument("--passes", action="store_true",
+                    help="time every compute dispatch by pass: what grows with N")
     ap.add_argument("--gbuffer-only", action="store_true",
                     help="time extraction + G-buffer alone, old path against new, no bake")
     args = ap.parse_args()
@@ -254,6 +278,13 @@ def main():
             if f is not None:
                 print(f"  F12 (1 GI iteration): median {f['median']:.1f} ms; split ms: "
                       f"{fmt(f['split'])}, meshes read {f['meshes_read']}", flush=True)
+            if args.passes:
+                for label, d in (("viewport still", v["passes"]),
+                                 ("F12", f["passes"] if f is not None else {})):
+                    top = sorted(d.items(), key=lambda kv: -kv[1])
+                    if top:
+                        print(f"  {label} passes ms: " + ", ".join(
+                            f"{k} {ms:.1f}" for k, ms in top if ms >= 0.5), flush=True)
     lo, hi = results[0], results[-1]
     f12 = [r for r in results if r["f12"] is not None]
     print(f"ratio N={hi['n']} / N={lo['n']}: viewport still frame "
@@ -263,6 +294,22 @@ def main():
     for key in ("extract", "sync", "gbuffer", "direct", "gi"):
         a, b = lo["view"]["split"][key], hi["view"]["split"][key]
         print(f"  viewport still {key:8s} {a:8.1f} -> {b:8.1f} ms")
+    if args.passes:
+        print_passes("viewport still frame (median)", lo["view"]["passes"], hi["view"]["passes"],
+                     lo["n"], hi["n"])
+        if len(f12) > 1:
+            print_passes("F12 (last render)", f12[0]["f12"]["passes"], f12[-1]["f12"]["passes"],
+                         f12[0]["n"], f12[-1]["n"])
+
+
+def print_passes(title: str, a: dict, b: dict, n_a: int, n_b: int):
+    """Each pass's ms at N=n_a and N=n_b, largest growth first (passes under 0.5 ms skipped)."""
+    print(f"{title}, per pass ms: N={n_a} -> N={n_b} (growth)")
+    keys = sorted(set(a) | set(b), key=lambda k: -(b.get(k, 0.0) - a.get(k, 0.0)))
+    for k in keys:
+        x, y = a.get(k, 0.0), b.get(k, 0.0)
+        if max(x, y) >= 0.5:
+            print(f"  {k:40s} {x:9.1f} -> {y:9.1f} ({y - x:+9.1f})")
 
 
 if __name__ == "__main__":

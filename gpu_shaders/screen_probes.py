@@ -28,9 +28,11 @@ Per frame, one GLSL pass each:
                             over the whole sphere: a constant L gives pi L every frame)
     screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, those a wall
                             hides left out, SH irradiance; where they fail, the adaptive probes
-                            of the nearest 8x8 and 4x4 tiles on the pixel's plane; a pixel that
-                            still has none traces 16 rays; every pixel adds the emitters
-                            nearer its surface than a ray starts (sc_near_emission)
+                            of the nearest 8x8 and 4x4 tiles on the pixel's plane; every
+                            pixel adds the emitters nearer its surface than a ray starts
+                            (sc_near_emission); the pixels still without probes go to a list
+    screen_probe_fallback   16 rays per listed pixel, one invocation each (full work groups:
+                            traced inside integrate, each group waited on its slowest pixel)
     screen_probe_temporal   mix with the history (running mean for F12, exponential in the viewport)
     screen_probe_temporal_split  the viewport with GISettings.split > 1: one pixel of each
                             block integrated per redraw (integrate's px_step, px_phase), its
@@ -80,12 +82,19 @@ FILTER = compute.Pass("screen_probe_filter",
 SH = compute.Pass("screen_probe_sh", samplers=("probe_info", "probe_normal", "probe_filtered"),
                   push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')))
 INTEGRATE = compute.Pass("screen_probe_integrate",
-                         samplers=GBUF + ("probe_info", "probe_normal", "probe_sh")
-                         + radiance_cache.SAMPLERS,
-                         images=("out_image", ("rc_marks", 'R32F')),
-                         push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'frame'),
-                               ('FLOAT', 't_max'), radiance_cache.CAMERA, ('INT', 'uniform_rows'),
+                         samplers=GBUF + ("probe_info", "probe_normal", "probe_sh"),
+                         images=("out_image", "fb_list", ("fb_counter", 'R32I', {'READ', 'WRITE'})),
+                         push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'uniform_rows'),
                                ('IVEC2', 'px_phase'), ('INT', 'px_step')))
+FALLBACK_GROUP = 64
+FALLBACK = compute.Pass("screen_probe_fallback",
+                        samplers=GBUF + radiance_cache.SAMPLERS,
+                        images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),
+                                ("fb_list", 'RGBA32F', {'READ'}), ("fb_counter", 'R32I', {'READ'}),
+                                ("rc_marks", 'R32F')),
+                        push=(('VEC3', 'cam_pos'), ('INT', 'frame'), ('FLOAT', 't_max'),
+                              radiance_cache.CAMERA),
+                        group=(FALLBACK_GROUP, 1, 1))
 TEMPORAL = compute.Pass("screen_probe_temporal", samplers=("indirect_new", "indirect_history"),
                         push=(('FLOAT', 'blend'),))
 TEMPORAL_SPLIT = compute.Pass("screen_probe_temporal_split",
@@ -233,14 +242,24 @@ class ScreenProbes:
                probe_filtered=tex["filtered"], probe_res=r, ray_jitter=ray_j, out_image=tex["sh"])
 
         tex["integrated"] = compute.texture((self.width, self.height))
-        INTEGRATE.run((-(-self.width // step), -(-self.height // step)), **tracers,
+        lw, lh = -(-self.width // step), -(-self.height // step)    # integrated pixels
+        if "fb_list" not in tex or (tex["fb_list"].width, tex["fb_list"].height) != (lw, lh):
+            tex["fb_list"] = compute.texture((lw, lh))
+            tex["fb_counter"] = compute.texture((1, 1), 'R32I')
+        tex["fb_counter"].clear(format='INT', value=(0,))
+        INTEGRATE.run((lw, lh), scene=resources, cache=cache,
                       px_step=step, px_phase=split_phase_pixel(split_frame % split, step),
-                      frame=int(frame), t_max=float(t_max),
                       gbuf_position=gpos, gbuf_normal=gnor, probe_info=tex["info"],
                       probe_normal=tex["normal"], probe_sh=tex["sh"], cam_pos=cam,
                       probe_tile=self.tile, uniform_rows=gh if adaptive else 0,
-                      out_image=tex["integrated"],
-                      **radiance_cache.lookup_inputs(rcache, cam_pos))
+                      out_image=tex["integrated"], fb_list=tex["fb_list"],
+                      fb_counter=tex["fb_counter"])
+        # the pixels integrate listed: their own rays, in full work groups
+        FALLBACK.run(lw * lh, **tracers, frame=int(frame), t_max=float(t_max),
+                     gbuf_position=gpos, gbuf_normal=gnor, cam_pos=cam,
+                     out_image=tex["integrated"], fb_list=tex["fb_list"],
+                     fb_counter=tex["fb_counter"],
+                     **radiance_cache.lookup_inputs(rcache, cam_pos))
         return tex["integrated"]
 
     def _plan_rays(self, gbuf: dict, cam_pos, frame: int):
@@ -292,12 +311,13 @@ class ScreenProbes:
         return out
 
     def stats(self) -> dict:
-        """GPU bytes of the probe textures (RGBA32F, the links R32F) and the history."""
+        """GPU bytes of the probe textures (RGBA32F; the links R32F, the fallback counter R32I)
+        and the history."""
         seen, out = set(), {}
         for k, t in self.textures.items():
             if id(t) not in seen:        # 'history' is 'radiance' itself without sampling
                 seen.add(id(t))
-                out["probes_" + k] = t.width * t.height * (4 if t.format == 'R32F' else 16)
+                out["probes_" + k] = t.width * t.height * (4 if t.format in ('R32F', 'R32I') else 16)
         if self.history is not None:
             out["probes_history"] = self.width * self.height * 16
         return out

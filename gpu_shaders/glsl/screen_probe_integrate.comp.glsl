@@ -2,35 +2,32 @@
 #include "sdf_ray_lib.glsl"
 #include "surface_cache_lib.glsl"
 #include "gbuffer_lib.glsl"
-#include "sampling_lib.glsl"
 #include "sh_lib.glsl"
 #include "probe_interp_lib.glsl"
-#include "radiance_cache_layout_lib.glsl"
-#include "radiance_cache_trace_lib.glsl"
-#include "radiance_cache_mark_lib.glsl"
 /* Screen probes, per-pixel integration (lecture: "Final integration with SH" and "Plane distance
  * weighting of Probe Interpolation"): the 4 probes around the pixel (tile centres as the bilinear
  * grid), weighted by probe_corner_weights (bilinear x plane distance), probes that a wall hides
  * from the pixel (sdf_ray_lib.glsl's gi_visible) left out; irradiance
  * E = sum w_i sh9_irradiance(c_i, n). Where no probe lies on the pixel's plane (lighting_valid 0:
  * silhouettes, thin objects) the visible probes are used by their bilinear weights alone, and with
- * none visible the pixel traces FALLBACK_RAYS rays itself; such pixels are flagged (w = 0) for the
- * debug view. With the world radiance cache on, the fallback rays trace ~2 m and take the far
- * field from it (rc_radiance), marking the cells around the pixel for the next frame's probes.
- * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, the mesh SDFs;
- * cam_pos, probe_tile; for the fallback rays the surface cache and global SDF, frame, t_max,
- * the radiance cache's samplers, rc_camera and image rc_marks.
+ * none visible the pixel needs rays of its own: it writes (sc_near_emission, w = 0) and appends
+ * (px, voxel) to the list fb_list (slot from the atomic counter fb_counter, cleared each frame);
+ * screen_probe_fallback traces those pixels' rays and adds their irradiance. Why a list: traced
+ * here, every work group waited on its slowest pixel (with 1,000 small objects most groups held
+ * one or two such pixels), while the list packs them into full groups.
+ * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, the mesh SDFs and the
+ * surface cache (near emission); cam_pos, probe_tile; images fb_list (RGBA32F, at least the
+ * dispatch's pixel count) and fb_counter (R32I 1x1).
  * With adaptive probes (uniform_rows > 0: screen_probe_adaptive's atlas, the uniform block
  * [0, gw) x [0, uniform_rows)) a pixel the uniform probes do not interpolate first takes the
  * adaptive probes of its 2x2 nearest 8x8 and 4x4 tiles that lie on its plane (w = 0.5).
  * Every E adds sc_near_emission (surface_cache_lib.glsl): emitters nearer the pixel's surface than
  * any probe ray starts (an emissive panel under a ceiling lights the ceiling around it).
  * Output out_image: E.rgb (irradiance, W/m^2), w = 1 interpolated, 0.5 adaptive, 0 fallback
- * (the visible uniform probes' bilinear weights or FALLBACK_RAYS rays), -1 background.
+ * (the visible uniform probes' bilinear weights or screen_probe_fallback's rays), -1 background.
  * The viewport integrates one pixel of every px_step x px_step block per redraw (px_phase: which;
  * the dispatch covers the image / px_step): screen_probe_temporal_split fills the others.
  */
-#define FALLBACK_RAYS 16
 /* A probe lights a pixel only if its normal is within ~60 degrees of the pixel's: its SH holds
  * the radiance around its own surface (the rays below it start inside that surface's shell), so
  * read at a normal turned far from its own it extrapolates. The plane test alone let the floor's
@@ -120,25 +117,12 @@ void main()
     bw *= valid;
     w = bw / max(dot(bw, vec4(1.0)), 1e-6);
     if (dot(valid, vec4(1.0)) == 0.0) {
-      /* No probe this pixel can see (silhouettes, a strip along a thin wall): gather here with
-       * FALLBACK_RAYS cosine rays (the lecture refines with smaller probes; a pixel is the limit). */
-      uint seed = pcg_hash(uint(px.x) + 7919u * uint(px.y)) ^ pcg_hash(uint(frame) + 0x2545f491u);
-      vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
-      vec3 o = p + n * max(voxel, 1e-3);
-      vec3 sum = vec3(0.0);
-      int k = rc_level(o);
-      bool mark = false;
-      for (int i = 0; i < FALLBACK_RAYS; i++) {
-        vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(FALLBACK_RAYS)) + rot), n);
-        float t;
-        int status;
-        sum += rc_radiance(o, dir, t_max, k, t, status);
-        mark = mark || status > 0;
-      }
-      if (mark) {
-        rc_mark(o, k, frame);     /* probes for this pixel's next frames */
-      }
-      imageStore(out_image, px, vec4(3.14159265358979 * sum / float(FALLBACK_RAYS) + near, 0.0));
+      /* No probe this pixel can see (silhouettes, a strip along a thin wall): its own rays, in
+       * screen_probe_fallback (the lecture refines with smaller probes; a pixel is the limit). */
+      imageStore(out_image, px, vec4(near, 0.0));
+      int slot = imageAtomicAdd(fb_counter, ivec2(0, 0), 1);
+      int lw = imageSize(fb_list).x;
+      imageStore(fb_list, ivec2(slot % lw, slot / lw), vec4(vec2(px), voxel, 0.0));
       return;
     }
   }

@@ -1,0 +1,53 @@
+#include "gbuffer_lib.glsl"
+#include "sampling_lib.glsl"
+#include "radiance_cache_layout_lib.glsl"
+#include "radiance_cache_trace_lib.glsl"
+#include "radiance_cache_mark_lib.glsl"
+/* Screen probes, the pixels no probe serves (split from screen_probe_integrate, which lists them
+ * in fb_list: (px, voxel) per slot, fb_counter slots): FALLBACK_RAYS cosine rays per listed pixel
+ * from its surface, added to what integrate wrote there (its near emission, w = 0). The same rays,
+ * seeds and sums as when integrate traced them itself, so the same image; but one invocation per
+ * listed pixel, so the work groups are full (traced in integrate, each 8x8 group waited on its
+ * slowest pixel: 68 -> 1810 ms from 10 to 1,000 small objects in the earlier measurement).
+ * With the world radiance cache on the rays trace ~2 m and take the far field from it
+ * (rc_radiance), marking the cells around the pixel for the next frame's probes (rc_marks).
+ * Dispatched over the whole list (no read-back of the count): slots past fb_counter return.
+ * Inputs: gbuf_position, gbuf_normal, fb_list, fb_counter, the tracers (mesh and global SDF,
+ * surface cache, sky, voxel lighting), the radiance cache's samplers; cam_pos, frame, t_max,
+ * rc_camera; image out_image (read and written), rc_marks.
+ */
+#define FALLBACK_RAYS 16
+
+void main()
+{
+  ivec2 lsize = imageSize(fb_list);
+  int slot = int(gl_GlobalInvocationID.x);
+  if (slot >= imageLoad(fb_counter, ivec2(0, 0)).x || slot >= lsize.x * lsize.y) {
+    return;
+  }
+  vec4 entry = imageLoad(fb_list, ivec2(slot % lsize.x, slot / lsize.x));
+  ivec2 px = ivec2(entry.xy);
+  float voxel = entry.z;
+  vec3 p, n;
+  if (!gbuf_surface(px, cam_pos, p, n)) {
+    return;
+  }
+  uint seed = pcg_hash(uint(px.x) + 7919u * uint(px.y)) ^ pcg_hash(uint(frame) + 0x2545f491u);
+  vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
+  vec3 o = p + n * max(voxel, 1e-3);
+  vec3 sum = vec3(0.0);
+  int k = rc_level(o);
+  bool mark = false;
+  for (int i = 0; i < FALLBACK_RAYS; i++) {
+    vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(FALLBACK_RAYS)) + rot), n);
+    float t;
+    int status;
+    sum += rc_radiance(o, dir, t_max, k, t, status);
+    mark = mark || status > 0;
+  }
+  if (mark) {
+    rc_mark(o, k, frame);     /* probes for this pixel's next frames */
+  }
+  vec3 near = imageLoad(out_image, px).rgb;
+  imageStore(out_image, px, vec4(3.14159265358979 * sum / float(FALLBACK_RAYS) + near, 0.0));
+}
