@@ -170,16 +170,18 @@ class SurfaceCache:
         return {"cards_" + k: n * self.BYTES[fmt] for k, (n, fmt) in self._alloc.items()}
 
     # --- passes --------------------------------------------------------------------------------
-    def plan(self, frame: int, blend: float = 1.0, budget: int = 0, where=None, fraction: float = 1.0, objects=None) -> tuple:
+    def plan(self, frame: int, blend: float = 1.0, budget: int = 0, history: int = 1,
+             where=None, fraction: float = 1.0, objects=None) -> tuple:
         """This frame's tiles and their blends, committed as relit at `frame`.
         budget <= 0 (F12): every tile, all with `blend`, or with fraction < 1 that fraction of
         them by PageSchedule.render_priority (`where`: view_proj, cam_pos; `objects`: the
         object table, for the tiles' world geometry); every tile on the first call after a
         reset. budget > 0 (viewport): at most `budget`
         tiles by priority (surface_cache_pages.py; `where`: instance_spheres, view_proj,
-        cam_pos), each with `blend` (PageSchedule.choose: 1 on a tile's first update)."""
+        cam_pos), blends by each tile's update count (PageSchedule.choose: `blend` for the
+        bounces, then 1 / `history`)."""
         if budget > 0:
-            idx, blends = self.pages.choose(budget, frame, blend, **(where or {}))
+            idx, blends = self.pages.choose(budget, frame, blend, history, **(where or {}))
         elif fraction < 1.0:
             if self.pages.geometry is None and objects is not None:
                 tc, cards = self.packed.texel_card, self.packed.cards

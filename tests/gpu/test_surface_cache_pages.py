@@ -29,7 +29,7 @@ def test_budget_priority_and_round_robin():
     idx, blend = s.choose(0, frame=0, blend=1.5)     # no budget: everything
     assert len(idx) == 11 and np.allclose(blend, 1.0)  # first update of each: replace
     s.commit(idx, 0)
-    idx, blend = s.choose(4, frame=1, blend=1.5)
+    idx, blend = s.choose(4, frame=1, blend=1.5, history=2)
     assert len(idx) == 4 and np.allclose(blend, 1.5)  # then the blend asked (one more bounce)
     # an instance in view and near the camera wins over equally old tiles
     spheres = np.array([[0, 0, 0, 1], [0, 0, 0, 1], [100, 0, 0, 1], [0, 0, 50, 1]], float)
@@ -49,6 +49,16 @@ def test_budget_priority_and_round_robin():
         seen[idx] += 1
     assert (seen >= 1).all(), seen
     assert not s.converged(8)
+
+
+def test_blends_bounce_then_average():
+    """Viewport tiles: replace, then `blend` (one more bounce) until `history` updates, then the
+    exponential mean 1 / history."""
+    s = PageSchedule(*atlas())
+    for frame, want in enumerate((1.0, 1.5, 1.5, 1 / 3, 1 / 3)):
+        idx, blend = s.choose(0, frame, blend=1.5, history=3)
+        assert np.allclose(blend, want), (frame, blend)
+        s.commit(idx, frame)
 
 
 def test_never_lit_tiles_come_first_after_a_reset():
