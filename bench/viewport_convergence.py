@@ -11,7 +11,7 @@ viewport against F12 at the first redraw, at a quarter, half and the end of its 
 at the end; the median redraw time and F12's time.
 
     .venv/bin/python bench/viewport_convergence.py [--size 128] [--scenes cornell,thin]
-                                                   [--max-redraws 120] [--split 1]
+                                                   [--max-redraws 120] [--split 1] [--keep DIR]
 """
 from __future__ import annotations
 
@@ -41,6 +41,9 @@ def main():
     ap.add_argument("--split", type=int, default=None,
                     help="the scenes' Viewport > Spread over (viewport_split: 1, 4 or 16; default "
                     "the property's default)")
+    ap.add_argument("--keep", default=None,
+                    help="a folder: save F12's and the last redraw's direct, indirect and combined "
+                    "as <scene>_<f12|viewport>_<pass>.npy (to see where they differ)")
     args = ap.parse_args()
 
     import bpy
@@ -75,6 +78,11 @@ def main():
             if "error" in R:
                 raise SystemExit(R.get("traceback", R["error"]))
             f12 = R["combined"].copy()
+            passes = ("direct", "indirect", "combined")
+            if args.keep:
+                Path(args.keep).mkdir(parents=True, exist_ok=True)
+                for k in passes:
+                    np.save(Path(args.keep) / f"{name}_f12_{k}.npy", R[k])
             trail = []
 
             def on_redraw(i, trail=trail):
@@ -90,6 +98,9 @@ def main():
                                        redraws=args.max_redraws, on_redraw=on_redraw,
                                        until=lambda i: trail and trail[-1]["done"])
             engine.KEEP_IMAGES = False
+            if args.keep:
+                for k in passes:
+                    np.save(Path(args.keep) / f"{name}_viewport_{k}.npy", engine.LAST_RENDER[k])
             n = len(trail)
             hist = trail[0]["gi"][1] if trail[0]["gi"] else n
             at = {k: trail[min(int(k * hist), n) - 1]["err"] for k in (0.25, 0.5, 1.0)}

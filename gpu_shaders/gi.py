@@ -116,7 +116,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         frame0 = state.gi_frame
         where = dict(instance_spheres=res.packed.objects[:, 8], view_proj=view_proj,
                      cam_pos=cam_pos)
-        tiles = cache.plan(frame0, budget=gi.sc_tiles, history=gi.history, where=where)
+        tiles = cache.plan(frame0, blend=max(float(gi.cache_relax), 1.0), budget=gi.sc_tiles,
+                           history=gi.history, where=where)
     cache.light_direct(res, state.light_texture, len(state.lights), tiles=tiles)
     t2 = time.perf_counter()
     timings = {"gsdf": 0.0, "voxel_lighting": 0.0, "sc_indirect": 0.0, "probes": 0.0}
@@ -132,7 +133,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         schedule = gi.render_schedule()
         share = gi.render_sc_share()
     else:
-        # one iteration; the surface cache's tiles blend by their own counts (plan() above)
+        # one iteration; the surface cache's tiles take one more bounce per update, then average
+        # (plan() above)
         m = probes.history is not None and probes.frames or 0
         schedule = [(1.0, max(1.0 / (m + 1), 1.0 / gi.history))]
     # the viewport's split: one pixel of each block integrated per redraw, in turns counted from

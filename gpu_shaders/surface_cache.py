@@ -178,9 +178,10 @@ class SurfaceCache:
         object table, for the tiles' world geometry); every tile on the first call after a
         reset. budget > 0 (viewport): at most `budget`
         tiles by priority (surface_cache_pages.py; `where`: instance_spheres, view_proj,
-        cam_pos), each with its own blend from its update count and `history`."""
+        cam_pos), blends by each tile's update count (PageSchedule.choose: `blend` for the
+        bounces, then 1 / `history`)."""
         if budget > 0:
-            idx, blends = self.pages.choose(budget, frame, history, **(where or {}))
+            idx, blends = self.pages.choose(budget, frame, blend, history, **(where or {}))
         elif fraction < 1.0:
             if self.pages.geometry is None and objects is not None:
                 tc, cards = self.packed.texel_card, self.packed.cards

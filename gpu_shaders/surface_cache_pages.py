@@ -186,17 +186,28 @@ class PageSchedule:
         to_cam = np.asarray(cam_pos, np.float64)[:3] - centre
         return ((normal * to_cam).sum(axis=1) > 0.0) | (np.linalg.norm(normal, axis=1) < 0.9)
 
-    def choose(self, budget: int, frame: int, history: int, **where) -> tuple:
+    def choose(self, budget: int, frame: int, blend: float = 1.0, history: int = 1,
+               **where) -> tuple:
         """(tile indices, blend per tile) for this frame: at most `budget` tiles by priority
-        (all when budget <= 0 or >= the tile count). Call commit() once they were relit."""
+        (all when budget <= 0 or >= the tile count). A tile's first update replaces (1), its
+        next ones up to `history` take `blend` (one more bounce each, over-relaxed as F12's),
+        then 1 / history (an exponential mean: the noise). Call commit() once they were relit.
+        Why not a running mean from the first update: every update is one more bounce (its
+        rays read the cache's last light), so a mean over them is a damped fixed-point
+        iteration, x += (T(x) - x) / n, whose error shrinks by only 1 - (1 - rho) / n per
+        update: in a room of bounce ratio rho ~0.6 it said "converged" (history updates) with
+        the indirect light 22% short of F12's (bench/viewport_convergence.py, `imported`).
+        Why not one more bounce forever: a tile is relit every few redraws, so the screen
+        probes' history sees only a few of its states and shows its noise."""
         n = len(self.tiles)
         if budget <= 0 or budget >= n:
             idx = np.arange(n)
         else:
             idx = np.argsort(-self.priority(frame, **where), kind="stable")[:budget]
             idx.sort()
-        blend = np.maximum(1.0 / (self.count[idx] + 1.0), 1.0 / max(int(history), 1))
-        return idx, blend
+        c = self.count[idx]
+        return idx, np.where(c == 0, 1.0, np.where(c < max(int(history), 1), float(blend),
+                                                     1.0 / max(int(history), 1)))
 
     def commit(self, idx, frame: int):
         self.count[idx] += 1

@@ -26,11 +26,11 @@ def test_tiles_and_rows():
 
 def test_budget_priority_and_round_robin():
     s = PageSchedule(*atlas())
-    idx, blend = s.choose(0, frame=0, history=8)     # no budget: everything
-    assert len(idx) == 11 and np.allclose(blend, 1.0)
+    idx, blend = s.choose(0, frame=0, blend=1.5)     # no budget: everything
+    assert len(idx) == 11 and np.allclose(blend, 1.0)  # first update of each: replace
     s.commit(idx, 0)
-    idx, blend = s.choose(4, frame=1, history=8)
-    assert len(idx) == 4 and np.allclose(blend, 0.5)  # second update of each: 1 / 2
+    idx, blend = s.choose(4, frame=1, blend=1.5, history=2)
+    assert len(idx) == 4 and np.allclose(blend, 1.5)  # then the blend asked (one more bounce)
     # an instance in view and near the camera wins over equally old tiles
     spheres = np.array([[0, 0, 0, 1], [0, 0, 0, 1], [100, 0, 0, 1], [0, 0, 50, 1]], float)
     view_proj = np.diag([0.1, 0.1, -0.1, 1.0])       # the box |x|, |y|, |z| <= 10 is in view
@@ -42,7 +42,7 @@ def test_budget_priority_and_round_robin():
     s.reset()
     seen = np.zeros(len(s), int)
     for frame in range(3):
-        idx, _ = s.choose(4, frame, history=8, instance_spheres=spheres, view_proj=view_proj,
+        idx, _ = s.choose(4, frame, instance_spheres=spheres, view_proj=view_proj,
                           cam_pos=(0, 0, 0))
         assert len(idx) == 4 or frame == 2
         s.commit(idx, frame)
@@ -51,10 +51,20 @@ def test_budget_priority_and_round_robin():
     assert not s.converged(8)
 
 
+def test_blends_bounce_then_average():
+    """Viewport tiles: replace, then `blend` (one more bounce) until `history` updates, then the
+    exponential mean 1 / history."""
+    s = PageSchedule(*atlas())
+    for frame, want in enumerate((1.0, 1.5, 1.5, 1 / 3, 1 / 3)):
+        idx, blend = s.choose(0, frame, blend=1.5, history=3)
+        assert np.allclose(blend, want), (frame, blend)
+        s.commit(idx, frame)
+
+
 def test_never_lit_tiles_come_first_after_a_reset():
     s = PageSchedule(*atlas())
     s.commit(np.arange(6), 0)
-    idx, blend = s.choose(5, frame=1, history=8)
+    idx, blend = s.choose(5, frame=1, blend=1.5)
     assert set(idx) == set(range(6, 11)) and np.allclose(blend, 1.0)
     table = s.page_table(idx, blend)
     assert table.shape == (1, 5, 4) and np.array_equal(table[0, :, :2], s.tiles[idx])
