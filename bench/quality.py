@@ -45,6 +45,8 @@ Engines, each rendering the scene camera at --size x --size with bpy.ops.render.
                       side a probe keeps when a small image halves the probe tile (4: the same
                       rays per pixel as the preset's tile; 8: every probe 64 rays)
     lumen_frames4/6   lumen with render_frames 4 or 6 (default 8)
+    lumen_bounces5    lumen with bounces 5 (default 3: 2 surface-cache iterations before the gather)
+    lumen_b5f6        lumen with bounces 5 and render_frames 6 (as many iterations as the default)
 EEVEE and LUMEN_GI first render once at 32x32 (shader compilation, uploads): that warm-up is
 reported apart from the timed render; so are the one-off bakes (light probes, Lumen).
 
@@ -89,7 +91,7 @@ ENGINES = ("cycles_ref", "cycles_4spp_oidn", "eevee", "eevee_rt", "eevee_volume"
            "lumen_high", "lumen_ssgi", "lumen_rsm", "lumen_lpv", "lumen_vxgi",
            "lumen_off", "lumen_rc", "lumen_noscreen", "lumen_screen", "lumen_noaa",
            "lumen_noadaptive", "lumen_res4", "lumen_res6", "lumen_res8",
-           "lumen_frames4", "lumen_frames6")
+           "lumen_frames4", "lumen_frames6", "lumen_bounces5", "lumen_b5f6")
 CYCLES_BOUNCES = dict(max_bounces=12, diffuse_bounces=12)
 FAST_SAMPLES = 4
 WARMUP_SIZE = 32
@@ -577,6 +579,8 @@ def run_lumen_res(ctx, res):
 RUNNERS = {"cycles_ref": run_cycles_ref, "cycles_4spp_oidn": run_cycles_fast, "eevee": run_eevee,
            "eevee_rt": run_eevee_rt, "eevee_volume": run_eevee_volume, "lumen": run_lumen,
            "lumen_high": run_lumen_high,
+           "lumen_bounces5": lambda ctx: run_lumen(ctx, (("bounces", 5),)),
+           "lumen_b5f6": lambda ctx: run_lumen(ctx, (("bounces", 5), ("render_frames", 6))),
            "lumen_ssgi": lambda ctx: run_lumen(ctx, LUMEN_SSGI_SETTINGS),
            "lumen_rsm": lambda ctx: run_lumen(ctx, LUMEN_RSM_SETTINGS),
            "lumen_lpv": lambda ctx: run_lumen(ctx, LUMEN_LPV_SETTINGS),
