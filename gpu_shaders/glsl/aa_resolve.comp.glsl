@@ -10,7 +10,8 @@
  * behind a wall from the sample's point (sdf_ray_lib.glsl's gi_visible, the thin-wall rule
  * included) does not qualify: a floor and the ground outside its room are one plane, and with
  * jitters across Cycles' 3 px filter the room's floor by a 1.5 cm wall took the sunlit ground's
- * light.
+ * light. The field at the sample's lifted point is sampled once for its neighbours' tests
+ * (gi_visible_from).
  * Inputs: gbuf_position, gbuf_normal (this sample's G-buffer), base_position, base_normal,
  * e_base (the frame's); push jitter (pixels), footprint (a, b: a pixel's footprint at distance d
  * is a d + b), cam_pos. Output out_image: E (rgb), w 1 (0 on the background).
@@ -32,6 +33,8 @@ void main()
   int obj;
   sdf_scene(p, h, obj);
   float voxel = gi_object_voxel(max(obj, 0));
+  vec3 lifted = gi_lifted(p, n, voxel);
+  float room = sdf_scene(lifted, h, obj);      /* the field there, for every neighbour's test */
   vec3 sum = vec3(0.0);
   float wsum = 0.0;
   vec3 nearest = vec3(0.0);
@@ -62,7 +65,10 @@ void main()
       }
       vec2 off = vec2(dx, dy) - jitter;
       float w = max(1.0 - abs(off.x), 0.0) * max(1.0 - abs(off.y), 0.0);
-      if (w <= 0.0 || !gi_visible(p, n, bp.xyz, bn, voxel)) {
+      if (w <= 0.0) {
+        continue;
+      }
+      if (!gi_visible_from(lifted, room, bp.xyz, bn, voxel)) {
         continue;
       }
       sum += w * e;

@@ -81,13 +81,19 @@ float gi_object_voxel(int obj)
 #ifndef GI_STOP_MARGIN
 #define GI_STOP_MARGIN 0.0
 #endif
-bool gi_visible(vec3 a, vec3 na, vec3 b, vec3 nb, float voxel)
+/* a's end lifted (gi_visible's pa) and the scene distance there: a pass that tests one point
+ * against several (its 2x2 or 3x3 neighbours, all with one voxel) samples the field at pa once
+ * and calls gi_visible_from; gi_visible is that for one pair. */
+vec3 gi_lifted(vec3 a, vec3 na, float voxel)
 {
-  vec3 pa = a + na * (GI_LIFT_VOXELS * voxel);
-  vec3 pb = b + nb * (GI_LIFT_VOXELS * voxel);
+  return a + na * (GI_LIFT_VOXELS * voxel);
+}
+
+bool gi_visible_from(vec3 pa, float da, vec3 b, vec3 nb, float voxel)
+{
+  vec3 pb = gi_lifted(b, nb, voxel);
   float h;
   int obj;
-  float da = sdf_scene(pa, h, obj);
   float db = sdf_scene(pb, h, obj);
   if (da < db) {
     vec3 tmp = pa;
@@ -117,4 +123,12 @@ bool gi_visible(vec3 a, vec3 na, vec3 b, vec3 nb, float voxel)
   }
   float t;
   return !gi_trace_mesh(pa, d / len, 0.0, stop, t, obj);
+}
+
+bool gi_visible(vec3 a, vec3 na, vec3 b, vec3 nb, float voxel)
+{
+  vec3 pa = gi_lifted(a, na, voxel);
+  float h;
+  int obj;
+  return gi_visible_from(pa, sdf_scene(pa, h, obj), b, nb, voxel);
 }

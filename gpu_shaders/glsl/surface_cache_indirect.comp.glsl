@@ -39,6 +39,13 @@ void main()
   vec2 f = g - vec2(i0);
   vec3 E = vec3(0.0);
   float wsum = 0.0;
+  /* the texel's end of every probe's visibility test, sampled once (gi_visible_from): the
+   * probes of its card are on its object and have its voxel */
+  float lift_voxel = gi_object_voxel(obj);
+  vec3 lifted = gi_lifted(p, n, lift_voxel);
+  float h;
+  int o;
+  float room = sdf_scene(lifted, h, o);
   for (int k = 0; k < 4; k++) {
     ivec2 d = ivec2(k & 1, k >> 1);
     ivec2 q = clamp(i0 + d, ivec2(0), grid - 1);
@@ -47,7 +54,12 @@ void main()
       continue;
     }
     vec4 qp = texelFetch(sc_probe_pos, q, 0);
-    if (!gi_visible(p, n, qp.xyz, qi.xyz, qp.w)) {
+    if (qp.w != lift_voxel) {  /* never so far: one card, one object */
+      lift_voxel = qp.w;
+      lifted = gi_lifted(p, n, qp.w);
+      room = sdf_scene(lifted, h, o);
+    }
+    if (!gi_visible_from(lifted, room, qp.xyz, qi.xyz, qp.w)) {
       continue;
     }
     float w = (d.x == 1 ? f.x : 1.0 - f.x) * (d.y == 1 ? f.y : 1.0 - f.y) + 1e-3;

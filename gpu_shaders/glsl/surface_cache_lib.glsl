@@ -88,7 +88,8 @@ vec3 sdf_mesh_normal_local(int obj, vec3 p, float e)
  * weights (0: no card sees p, the result is then black).
  * guard (ray hits): with a local-to-world matrix l2w and world voxel guard_voxel > 0, a texel that
  * a wall hides from p (gi_visible between the two lifted points) is left out: card texels are
- * coarser than a thin wall, and a lit texel outside must not bleed into the dark room inside. */
+ * coarser than a thin wall, and a lit texel outside must not bleed into the dark room inside
+ * (the field at p's lifted end, `room`, is sampled once for all of them: gi_visible_from). */
 vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, mat4 l2w, float guard_voxel, out float weight)
 {
   vec3 pw = (l2w * vec4(p, 1.0)).xyz;
@@ -96,10 +97,11 @@ vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, mat4 l2w, float guard_v
   /* Room around p (lifted as gi_visible lifts it): a wall between p and a texel of its 2x2
    * footprint lies within two texels of it, so with more room than that no texel is tested. */
   float room = 1e30;
+  vec3 lifted = gi_lifted(pw, nw, guard_voxel);
   if (guard_voxel > 0.0) {
     float hh;
     int oo;
-    room = sdf_scene(pw + nw * (GI_LIFT_VOXELS * guard_voxel), hh, oo);
+    room = sdf_scene(lifted, hh, oo);     /* also gi_visible's field at p's end */
   }
   float scale = sdf_object_texel(obj, 7).w;
   ivec2 range = sc_instance_range(obj);
@@ -145,7 +147,7 @@ vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, mat4 l2w, float guard_v
         q[pl.x] = uv.x;
         q[pl.y] = uv.y;
         q += SC_AXES[axis] * (t3.x + td);
-        if (!gi_visible(pw, nw, (l2w * vec4(q, 1.0)).xyz, nw, guard_voxel)) {
+        if (!gi_visible_from(lifted, room, (l2w * vec4(q, 1.0)).xyz, nw, guard_voxel)) {
           continue;
         }
       }

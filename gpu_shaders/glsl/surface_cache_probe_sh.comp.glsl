@@ -31,6 +31,11 @@ void main()
   vec3 e0 = vec3(0.0);
   if (own.w > 0.5) {
     float used = 0.0;
+    vec4 a = texelFetch(sc_probe_pos, probe, 0);
+    vec3 lifted = gi_lifted(a.xyz, own.xyz, a.w);
+    float h;
+    int o;
+    float room = sdf_scene(lifted, h, o);   /* the field there, for every neighbour's test */
     for (int dy = -1; dy <= 1; dy++) {
       for (int dx = -1; dx <= 1; dx++) {
         ivec2 q = probe + ivec2(dx, dy);
@@ -42,9 +47,8 @@ void main()
           continue;
         }
         if (q != probe) {
-          vec4 a = texelFetch(sc_probe_pos, probe, 0);
           vec4 b = texelFetch(sc_probe_pos, q, 0);
-          if (!gi_visible(a.xyz, own.xyz, b.xyz, qi.xyz, a.w)) {
+          if (!gi_visible_from(lifted, room, b.xyz, qi.xyz, a.w)) {
             continue;
           }
         }

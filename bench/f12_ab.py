@@ -1,0 +1,140 @@
+"""Benchmark: two versions of the engine's GLSL (or a GISettings field), A/B in one process on F12
+renders of bench/quality_scenes scenes, with the images compared exactly.
+
+Each round renders every scene with A, then B (each version: every compiled shader freed, the
+GLSL resolver pointed at its folder, one 32x32 warm-up render for compilation, then the timed F12
+at --size). Prints per scene the median F12 seconds of A and B (wall, and the process's CPU
+seconds, llvmpipe's threads included: on a shared machine the wall time of one render varies by
+tens of percent with the other jobs, its CPU time much less), B/A, the per-pass CPU seconds that
+changed most, and the largest absolute difference between the two Combined images (0: the
+change is exact; the engine is deterministic, so any difference is the change's).
+Why: bench/glsl_ab.py times the viewport; an F12 optimisation must keep F12's image.
+
+    .venv/bin/python bench/f12_ab.py --b /tmp/variant [--a gpu_shaders/glsl] [--rounds 1]
+                                     [--scenes cornell,window] [--size 128] [--setting FIELD=VALUE]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+import statistics
+import sys
+import tempfile
+from collections import defaultdict
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
+
+
+def timed_render():
+    """(wall seconds, CPU seconds, {pass: CPU seconds}) of one F12 render: every compute
+    dispatch timed by the process's CPU time (llvmpipe runs it before dispatch returns)."""
+    import time
+
+    import bpy
+    import gpu
+    import pass_profile
+
+    timings, names = defaultdict(float), {}
+    real = gpu.compute.dispatch
+
+    def timed(sh, *groups):
+        t = time.process_time()
+        real(sh, *groups)
+        key = names.get(id(sh))
+        if key is None:
+            names.update(pass_profile.shader_names())
+            key = names.get(id(sh), "?")
+        timings[key] += time.process_time() - t
+
+    gpu.compute.dispatch = timed
+    wall, cpu = time.perf_counter(), time.process_time()
+    try:
+        bpy.ops.render.render()
+    finally:
+        gpu.compute.dispatch = real
+    return time.perf_counter() - wall, time.process_time() - cpu, timings
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--a", default=str(ROOT / "gpu_shaders" / "glsl"), help="GLSL folder A")
+    ap.add_argument("--b", default=None, help="GLSL folder B (default: A)")
+    ap.add_argument("--setting", action="append", default=[], metavar="FIELD=VALUE",
+                    help="a GISettings field B renders with (int, float or 0/1)")
+    ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument("--scenes", default="cornell")
+    ap.add_argument("--size", type=int, default=128)
+    args = ap.parse_args()
+    folders = [Path(args.a).resolve(), Path(args.b or args.a).resolve()]
+    settings_b = {}
+    for item in args.setting:
+        field, _, value = item.partition("=")
+        settings_b[field] = float(value) if "." in value else int(value)
+    if folders[0] == folders[1] and not settings_b:
+        raise SystemExit("nothing to compare: give --b or --setting")
+
+    import bpy
+    import demo
+    import numpy as np
+    import quality_scenes
+
+    addon = demo.load_addon()
+    engine = addon.gpu_shaders.engine
+    engine.KEEP_IMAGES = True
+    include = importlib.import_module(f"{addon.__name__}.gpu_shaders.glsl_include")
+    gi_settings = importlib.import_module(f"{addon.__name__}.gpu_shaders.gi_settings")
+    original = gi_settings.from_scene
+    for name in args.scenes.split(","):
+        seconds, cpus, passes = [[], []], [[], []], [defaultdict(list), defaultdict(list)]
+        images = [None, None]
+        with tempfile.TemporaryDirectory() as tmp:
+            scene = quality_scenes.build(name)
+            scene.lumen.bake.cache_dir = tmp
+            if bpy.ops.lumen.bake() != {'FINISHED'}:
+                raise SystemExit("bake failed")
+            scene.render.engine = "LUMEN_GI"
+            scene.render.resolution_percentage = 100
+            for _ in range(args.rounds):
+                for version, folder in enumerate(folders):
+                    extra = settings_b if version else {}
+                    gi_settings.from_scene = (
+                        lambda s, viewport=False, extra=extra: dataclasses.replace(
+                            original(s, viewport), **extra))
+                    addon.gpu_shaders.free_shaders()
+                    include.files.__defaults__ = (folder,)
+                    include.source.__defaults__ = (folder,)
+                    try:
+                        scene.render.resolution_x = scene.render.resolution_y = 32
+                        bpy.ops.render.render()                       # compilation
+                        scene.render.resolution_x = scene.render.resolution_y = args.size
+                        total, cpu, timings = timed_render()
+                    finally:
+                        gi_settings.from_scene = original
+                    R = engine.LAST_RENDER
+                    if "error" in R:
+                        raise SystemExit(R.get("traceback", R["error"]))
+                    seconds[version].append(total)
+                    cpus[version].append(cpu)
+                    for k, v in timings.items():
+                        passes[version][k].append(v)
+                    images[version] = np.array(R["combined"], np.float64)
+        include.files.__defaults__ = include.source.__defaults__ = (include.GLSL,)
+        a, b = (statistics.median(s) for s in seconds)
+        ca, cb = (statistics.median(s) for s in cpus)
+        diff = float(np.abs(images[0] - images[1]).max())
+        print(f"[{name}] F12 {args.size}px: wall A {a:.2f} s, B {b:.2f} s, B/A {b / a:.3f}; "
+              f"CPU A {ca:.2f} s, B {cb:.2f} s, B/A {cb / ca:.3f}; "
+              f"max |Combined B - A| {diff:.3g}", flush=True)
+        rows = []
+        for k in set(passes[0]) | set(passes[1]):
+            pa, pb = (statistics.median(p[k]) if p[k] else 0.0 for p in passes)
+            rows.append((abs(pb - pa), k, pa, pb))
+        for _, k, pa, pb in sorted(rows, reverse=True)[:6]:
+            print(f"    {k:36s} {pa:8.2f} {pb:8.2f} CPU s  B/A {pb / pa if pa else 0:.3f}")
+
+
+if __name__ == "__main__":
+    main()
