@@ -16,8 +16,6 @@ Why: bench/glsl_ab.py times the viewport; an F12 optimisation must keep F12's im
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import importlib
 import statistics
 import sys
 import tempfile
@@ -34,47 +32,27 @@ def timed_render():
     import time
 
     import bpy
-    import gpu
     import pass_profile
 
-    timings, names = defaultdict(float), {}
-    real = gpu.compute.dispatch
-
-    def timed(sh, *groups):
-        t = time.process_time()
-        real(sh, *groups)
-        key = names.get(id(sh))
-        if key is None:
-            names.update(pass_profile.shader_names())
-            key = names.get(id(sh), "?")
-        timings[key] += time.process_time() - t
-
-    gpu.compute.dispatch = timed
+    timings = defaultdict(float)
+    undo = pass_profile.timed_dispatches(timings, clock=time.process_time)
     wall, cpu = time.perf_counter(), time.process_time()
     try:
         bpy.ops.render.render()
     finally:
-        gpu.compute.dispatch = real
+        undo()
     return time.perf_counter() - wall, time.process_time() - cpu, timings
 
 
 def main():
+    import glsl_ab
+
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--a", default=str(ROOT / "gpu_shaders" / "glsl"), help="GLSL folder A")
-    ap.add_argument("--b", default=None, help="GLSL folder B (default: A)")
-    ap.add_argument("--setting", action="append", default=[], metavar="FIELD=VALUE",
-                    help="a GISettings field B renders with (int, float or 0/1)")
-    ap.add_argument("--rounds", type=int, default=1)
+    glsl_ab.ab_arguments(ap, rounds=1)
     ap.add_argument("--scenes", default="cornell")
     ap.add_argument("--size", type=int, default=128)
     args = ap.parse_args()
-    folders = [Path(args.a).resolve(), Path(args.b or args.a).resolve()]
-    settings_b = {}
-    for item in args.setting:
-        field, _, value = item.partition("=")
-        settings_b[field] = float(value) if "." in value else int(value)
-    if folders[0] == folders[1] and not settings_b:
-        raise SystemExit("nothing to compare: give --b or --setting")
+    folders, settings_b = glsl_ab.ab_versions(args)
 
     import bpy
     import demo
@@ -84,9 +62,7 @@ def main():
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
     engine.KEEP_IMAGES = True
-    include = importlib.import_module(f"{addon.__name__}.gpu_shaders.glsl_include")
-    gi_settings = importlib.import_module(f"{addon.__name__}.gpu_shaders.gi_settings")
-    original = gi_settings.from_scene
+    versions = glsl_ab.Versions(addon, settings_b)
     for name in args.scenes.split(","):
         seconds, cpus, passes = [[], []], [[], []], [defaultdict(list), defaultdict(list)]
         images = [None, None]
@@ -99,20 +75,14 @@ def main():
             scene.render.resolution_percentage = 100
             for _ in range(args.rounds):
                 for version, folder in enumerate(folders):
-                    extra = settings_b if version else {}
-                    gi_settings.from_scene = (
-                        lambda s, viewport=False, extra=extra: dataclasses.replace(
-                            original(s, viewport), **extra))
-                    addon.gpu_shaders.free_shaders()
-                    include.files.__defaults__ = (folder,)
-                    include.source.__defaults__ = (folder,)
+                    versions.use(version, folder)
                     try:
                         scene.render.resolution_x = scene.render.resolution_y = 32
                         bpy.ops.render.render()                       # compilation
                         scene.render.resolution_x = scene.render.resolution_y = args.size
                         total, cpu, timings = timed_render()
                     finally:
-                        gi_settings.from_scene = original
+                        versions.settings_back()
                     R = engine.LAST_RENDER
                     if "error" in R:
                         raise SystemExit(R.get("traceback", R["error"]))
@@ -121,7 +91,7 @@ def main():
                     for k, v in timings.items():
                         passes[version][k].append(v)
                     images[version] = np.array(R["combined"], np.float64)
-        include.files.__defaults__ = include.source.__defaults__ = (include.GLSL,)
+        versions.restore()
         a, b = (statistics.median(s) for s in seconds)
         ca, cb = (statistics.median(s) for s in cpus)
         diff = float(np.abs(images[0] - images[1]).max())

@@ -32,15 +32,17 @@ PASSES = ("screen_probe_trace", "screen_probe_integrate", "screen_probe_fallback
           "surface_cache_probe_trace", "screen_probe_links", "screen_probe_filter")
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def ab_arguments(ap, rounds: int):
+    """The A/B options bench/glsl_ab.py and bench/f12_ab.py share: --a, --b, --setting, --rounds."""
     ap.add_argument("--a", default=str(ROOT / "gpu_shaders" / "glsl"), help="GLSL folder A")
     ap.add_argument("--b", default=None, help="GLSL folder B (default: A)")
     ap.add_argument("--setting", action="append", default=[], metavar="FIELD=VALUE",
                     help="a GISettings field B renders with (int, float or 0/1)")
-    ap.add_argument("--rounds", type=int, default=2)
-    ap.add_argument("--viewport", type=int, nargs=2, default=(640, 360), metavar=("W", "H"))
-    args = ap.parse_args()
+    ap.add_argument("--rounds", type=int, default=rounds)
+
+
+def ab_versions(args) -> tuple:
+    """([GLSL folder A, B], {GISettings field: value} of B) from ab_arguments' options, checked."""
     folders = [Path(args.a).resolve(), Path(args.b or args.a).resolve()]
     settings_b = {}
     for item in args.setting:
@@ -51,8 +53,50 @@ def main():
     for f in folders:
         if not (f / "sdf_lib.glsl").is_file():
             raise SystemExit(f"{f}: not a copy of gpu_shaders/glsl (no sdf_lib.glsl)")
+    return folders, settings_b
 
-    import dataclasses
+
+class Versions:
+    """Switches the loaded add-on between version A and B: the GLSL folder its resolver reads
+    (every compiled shader freed) and, for B, GISettings fields replaced in from_scene."""
+
+    def __init__(self, addon, settings_b: dict):
+        import dataclasses
+
+        self.addon = addon
+        self.include = importlib.import_module(f"{addon.__name__}.gpu_shaders.glsl_include")
+        self.gi_settings = importlib.import_module(f"{addon.__name__}.gpu_shaders.gi_settings")
+        self.original = self.gi_settings.from_scene
+        self.settings_b = settings_b
+        fields = {f.name for f in dataclasses.fields(self.gi_settings.GISettings)}
+        for field in settings_b:
+            if field not in fields:
+                raise SystemExit(f"--setting {field}: not a GISettings field")
+
+    def use(self, version: int, folder):
+        import dataclasses
+
+        extra, original = (self.settings_b if version else {}), self.original
+        self.gi_settings.from_scene = (lambda s, viewport=False, extra=extra: dataclasses.replace(
+            original(s, viewport), **extra))
+        self.addon.gpu_shaders.free_shaders()
+        self.include.files.__defaults__ = (folder,)     # the resolver's default folder
+        self.include.source.__defaults__ = (folder,)
+
+    def settings_back(self):
+        self.gi_settings.from_scene = self.original
+
+    def restore(self):
+        self.settings_back()
+        self.include.files.__defaults__ = self.include.source.__defaults__ = (self.include.GLSL,)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ab_arguments(ap, rounds=2)
+    ap.add_argument("--viewport", type=int, nargs=2, default=(640, 360), metavar=("W", "H"))
+    args = ap.parse_args()
+    folders, settings_b = ab_versions(args)
 
     import bpy
     import demo
@@ -62,12 +106,7 @@ def main():
 
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
-    include = importlib.import_module(f"{addon.__name__}.gpu_shaders.glsl_include")
-    gi_settings = importlib.import_module(f"{addon.__name__}.gpu_shaders.gi_settings")
-    original = gi_settings.from_scene
-    for field, value in settings_b.items():
-        if field not in {f.name for f in dataclasses.fields(gi_settings.GISettings)}:
-            raise SystemExit(f"--setting {field}: not a GISettings field")
+    versions = Versions(addon, settings_b)
     width, height = args.viewport
     results = [defaultdict(list), defaultdict(list)]
     with tempfile.TemporaryDirectory() as tmp:
@@ -78,12 +117,7 @@ def main():
             raise SystemExit("bake failed")
         for _ in range(args.rounds):
             for version, folder in enumerate(folders):
-                extra = settings_b if version else {}
-                gi_settings.from_scene = (lambda s, viewport=False, extra=extra: dataclasses.replace(
-                    original(s, viewport), **extra))
-                addon.gpu_shaders.free_shaders()
-                include.files.__defaults__ = (folder,)     # the resolver's default folder
-                include.source.__defaults__ = (folder,)
+                versions.use(version, folder)
                 timings = defaultdict(float)
                 undo = pass_profile.timed_dispatches(timings)
                 rows = []
@@ -98,11 +132,11 @@ def main():
                                          redraws=3, on_redraw=on_redraw)
                 finally:
                     undo()
-                    gi_settings.from_scene = original
+                    versions.settings_back()
                 for row in rows[1:]:
                     for k, v in row.items():
                         results[version][k].append(v)
-    include.files.__defaults__ = include.source.__defaults__ = (include.GLSL,)
+    versions.restore()
     print(f"viewport {width}x{height}, {args.rounds} rounds, medians (ms); B: "
           f"{folders[1] if folders[1] != folders[0] else 'same GLSL'} {settings_b or ''}")
     print(f"{'pass':32s} {'A':>10s} {'B':>10s} {'B/A':>7s}")

@@ -135,21 +135,22 @@ def main():
           f"{ev * 1000:.1f} ms; ratio {ours / ev:.2f} (target: 0.5)")
 
 
-def timed_dispatches(timings: dict):
-    """Patch gpu.compute.dispatch to add each dispatch's seconds to timings[shader name]; returns
+def timed_dispatches(timings: dict, clock=time.perf_counter):
+    """Patch gpu.compute.dispatch to add each dispatch's seconds to timings[shader name] (by
+    `clock`: wall time, or time.process_time for the CPU llvmpipe's threads spent); returns
     the function that undoes it."""
     import gpu
 
     real, names = gpu.compute.dispatch, {}
 
     def timed(sh, *groups):
-        t = time.perf_counter()
+        t = clock()
         real(sh, *groups)
         key = names.get(id(sh))
         if key is None:
             names.update(shader_names())
             key = names.get(id(sh), "?")
-        timings[key] += time.perf_counter() - t
+        timings[key] += clock() - t
 
     gpu.compute.dispatch = timed
     return lambda: setattr(gpu.compute, "dispatch", real)
