@@ -197,8 +197,11 @@ class PageSchedule:
         iteration, x += (T(x) - x) / n, whose error shrinks by only 1 - (1 - rho) / n per
         update: in a room of bounce ratio rho ~0.6 it said "converged" (history updates) with
         the indirect light 22% short of F12's (bench/viewport_convergence.py, `imported`).
-        Why not one more bounce forever: a tile is relit every few redraws, so the screen
-        probes' history sees only a few of its states and shows its noise."""
+        Why then a mean: once the bounces have converged an update's change is its noise (16
+        rays per 4x4 texels), and a tile relit every few redraws gives the probes' history
+        only a few of its states to average. Not measured to matter yet: within 200 redraws
+        the quality scenes end as close to F12 as with one more bounce forever (window 0.0109
+        against 0.0107; thin and yard do not reach `history` updates per tile)."""
         n = len(self.tiles)
         if budget <= 0 or budget >= n:
             idx = np.arange(n)
