@@ -41,48 +41,26 @@ void split_store(ivec2 tx, vec4 v)
   }
 }
 
-/* The ray origin: one voxel of the nearest object off the probe's surface along its normal. */
-vec3 probe_origin(vec4 info, vec3 n)
-{
-  float h;
-  int obj;
-  sdf_scene(info.xyz, h, obj);
-  return info.xyz + n * max(gi_object_voxel(max(obj, 0)), 1e-3);
-}
-
-/* With probe_res 8 and texel_step 1 (F12, and the viewport without its split) a work group
- * (8x8, compute.GROUP) is one probe: its first invocation finds the origin (an SDF sample) for
- * all 64 rays. */
-shared vec3 s_origin;
-
 void main()
 {
   ivec2 tx = ivec2(gl_GlobalInvocationID.xy) * texel_step + texel_phase;
   ivec2 size = imageSize(out_image);
-  bool inside = tx.x < size.x && tx.y < size.y;
-  ivec2 pr = tx / probe_res;
-  ivec2 texel = tx - pr * probe_res;
-  vec4 info = inside ? texelFetch(probe_info, pr, 0) : vec4(0.0);
-  vec3 n = inside ? texelFetch(probe_normal, pr, 0).xyz : vec3(0.0);
-  vec3 o = vec3(0.0);
-  if (probe_res == int(gl_WorkGroupSize.x) && texel_step == 1) {
-    if (gl_LocalInvocationIndex == 0u && info.w > 0.0) {
-      s_origin = probe_origin(info, n);
-    }
-    barrier();
-    o = s_origin;
-  }
-  else if (info.w > 0.0) {
-    o = probe_origin(info, n);
-  }
-  if (!inside) {
+  if (tx.x >= size.x || tx.y >= size.y) {
     return;
   }
+  ivec2 pr = tx / probe_res;
+  ivec2 texel = tx - pr * probe_res;
+  vec4 info = texelFetch(probe_info, pr, 0);
   if (info.w <= 0.0) {
     split_store(tx, vec4(0.0, 0.0, 0.0, -1.0));
     return;
   }
+  vec3 n = texelFetch(probe_normal, pr, 0).xyz;
   vec3 dir = screen_probe_ray_dir(tx, probe_res, ray_jitter);  /* importance sampling */
+  float h;
+  int obj;
+  sdf_scene(info.xyz, h, obj);
+  vec3 o = info.xyz + n * max(gi_object_voxel(max(obj, 0)), 1e-3);
   int k = rc_level(o);
   float tmax = k >= 0 ? min(rc_trace_distance(k), t_max) : t_max;
   float t;
