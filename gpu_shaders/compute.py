@@ -22,6 +22,8 @@ Push constants over Vulkan's 128 bytes go into a uniform block (the GLSL is unch
 """
 from __future__ import annotations
 
+import re
+
 import gpu
 import numpy as np
 
@@ -47,10 +49,29 @@ def new_info(group=(GROUP, GROUP, 1)):
     return info
 
 
+SHARED_DECL = re.compile(r"^[ \t]*shared[ \t]+[^;{}()]+;[ \t]*$", re.MULTILINE)
+SHARED_MACRO = "LUMEN_SHARED_DECLS"
+
+
+def hoist_shared(info, source: str) -> str:
+    """`source` with its work-group `shared` declarations moved into a define of `info`, expanded
+    where the first of them stood. Why: Blender 5.3 drops `shared` declarations from a Python
+    compute source (every use then fails to compile: 's_pos' undeclared; 5.0 compiles them),
+    while a define's text reaches the compiler as it is (both versions, measured)."""
+    decls = [m.group(0).strip() for m in SHARED_DECL.finditer(source)]
+    if not decls:
+        return source
+    info.define(SHARED_MACRO, " ".join(decls))
+    first = SHARED_DECL.search(source)
+    rest = SHARED_DECL.sub("", source[first.end():])
+    return source[:first.start()] + SHARED_MACRO + rest
+
+
 def create(info, source: str):
     """The compute shader of `source` (exactly one `void main()`), run behind the bind guard."""
     if source.count("void main()") != 1:
         raise ValueError("a compute source needs exactly one 'void main()'")
+    source = hoist_shared(info, source)
     source = source.replace("void main()", "void pass_main()") + (
         f"\nvoid main()\n{{\n  if ({GUARD} == -1) {{\n    return;\n  }}\n  pass_main();\n}}\n")
     info.compute_source(source)
