@@ -78,6 +78,23 @@ def create(info, source: str):
     return gpu.shader.create_from_info(info)
 
 
+PASS_MODULES = ("screen_probes", "surface_cache", "radiance_cache", "voxel_lighting",
+                "screen_trace", "hzb", "ssgi", "rsm", "lpv", "vxgi", "composite", "antialias",
+                "direct_light", "sdf_trace")
+
+
+def declared_passes() -> list:
+    """Every compute.Pass the engine's modules declare (imported on call; nothing compiled), for
+    the tests and the version matrix that compile them all, not only those a default F12 runs."""
+    import importlib
+
+    out = []
+    for mod in PASS_MODULES:
+        m = importlib.import_module(f"{__package__}.{mod}")
+        out += [p for p in vars(m).values() if isinstance(p, Pass)]
+    return out
+
+
 def run(sh, groups_x: int, groups_y: int = 1, groups_z: int = 1):
     """gpu.compute.dispatch of sh after setting the bind guard (last, see new_info)."""
     sh.uniform_int(GUARD, 0)

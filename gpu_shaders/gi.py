@@ -116,8 +116,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         frame0 = state.gi_frame
         where = dict(instance_spheres=res.packed.objects[:, 8], view_proj=view_proj,
                      cam_pos=cam_pos)
-        tiles = cache.plan(frame0, blend=max(float(gi.cache_relax), 1.0), budget=gi.sc_tiles,
-                           history=gi.history, where=where)
+        tiles = cache.plan(frame0, blend=gi.cache_blend, budget=gi.sc_tiles, history=gi.history,
+                           where=where)
     cache.light_direct(res, state.light_texture, len(state.lights), tiles=tiles)
     t2 = time.perf_counter()
     timings = {"gsdf": 0.0, "voxel_lighting": 0.0, "sc_indirect": 0.0, "probes": 0.0}

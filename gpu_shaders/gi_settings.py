@@ -92,6 +92,12 @@ class GISettings:
     def enabled(self) -> bool:
         return self.quality != "OFF"
 
+    @property
+    def cache_blend(self) -> float:
+        """The surface cache's blend per bounce update: cache_relax, at least 1 (F12's every
+        iteration, the viewport's tiles until their `history` count)."""
+        return max(float(self.cache_relax), 1.0)
+
     def render_schedule(self):
         """F12: [(surface-cache blend or None, probe blend or None), ...] per iteration. The first
         bounces - 1 iterations replace the cache's indirect light (one more bounce each) and
@@ -106,7 +112,7 @@ class GISettings:
         from 0.060 to 0.067: its light needs every bounce.)
         The cache's blend is `cache_relax` (> 1: over-relaxation, applied per texel only where
         the update goes the way its last one went; surface_cache_indirect.comp.glsl)."""
-        w = max(float(self.cache_relax), 1.0)
+        w = self.cache_blend
         warm = [(w, None)] * max(self.bounces - 1, 0)
         frames = max(self.render_frames, 1)
         return warm + [(w, 1.0 / (j + 1)) for j in range(frames)]

@@ -208,9 +208,8 @@ class PageSchedule:
         else:
             idx = np.argsort(-self.priority(frame, **where), kind="stable")[:budget]
             idx.sort()
-        c = self.count[idx]
-        return idx, np.where(c == 0, 1.0, np.where(c < max(int(history), 1), float(blend),
-                                                     1.0 / max(int(history), 1)))
+        c, h = self.count[idx], max(int(history), 1)
+        return idx, np.select([c == 0, c < h], [1.0, float(blend)], 1.0 / h)
 
     def commit(self, idx, frame: int):
         self.count[idx] += 1

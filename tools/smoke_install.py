@@ -105,11 +105,6 @@ def main(argv=None) -> int:
     return 0
 
 
-PASS_MODULES = ("screen_probes", "surface_cache", "radiance_cache", "voxel_lighting",
-                "screen_trace", "hzb", "ssgi", "rsm", "lpv", "vxgi", "composite", "antialias",
-                "direct_light", "sdf_trace")
-
-
 def compile_every_pass(addon) -> tuple:
     """(passes compiled, {name: error} of those that did not), inside a render() that holds
     Blender's GPU context (headless, that is where shaders compile)."""
@@ -124,15 +119,12 @@ def compile_every_pass(addon) -> tuple:
         bl_use_gpu_context = True
 
         def render(self, depsgraph):
-            for mod in PASS_MODULES:
-                m = importlib.import_module(f"{addon.__name__}.gpu_shaders.{mod}")
-                for p in vars(m).values():
-                    if isinstance(p, compute.Pass):
-                        try:
-                            p.shader
-                            done.append(p.name)
-                        except Exception as exc:   # noqa: BLE001 (reported by name)
-                            failed[p.name] = str(exc)[:200]
+            for p in compute.declared_passes():
+                try:
+                    p.shader
+                    done.append(p.name)
+                except Exception as exc:   # noqa: BLE001 (reported by name)
+                    failed[p.name] = str(exc)[:200]
             self.end_result(self.begin_result(0, 0, 4, 4))
 
     bpy.utils.register_class(CompileEngine)

@@ -11,7 +11,6 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 from blender_runner import run_python  # noqa: E402
 
 SNIPPET = """
-import importlib
 import mathutils
 from lumen_gi.gpu_shaders import compute
 
@@ -75,14 +74,9 @@ def job():
     OUT["errors"] = errors
     # every Pass the engine's modules declare compiles, within 128 B or through a block
     passes = {}
-    for mod in ("screen_probes", "surface_cache", "radiance_cache", "voxel_lighting",
-                "screen_trace", "hzb", "ssgi", "rsm", "lpv", "vxgi", "composite", "antialias",
-                "direct_light", "sdf_trace"):
-        m = importlib.import_module("lumen_gi.gpu_shaders." + mod)
-        for name, p in vars(m).items():
-            if isinstance(p, compute.Pass):
-                p.shader
-                passes[p.name] = dict(bytes=compute.push_bytes(p.push), block=p.block)
+    for p in compute.declared_passes():
+        p.shader
+        passes[p.name] = dict(bytes=compute.push_bytes(p.push), block=p.block)
     OUT["passes"] = passes
 
 run_in_gpu_context(job)
