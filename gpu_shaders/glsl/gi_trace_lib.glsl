@@ -44,6 +44,16 @@ bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t,
 {
   voxel_L = vec3(0.0);
   obj = -1;
+  /* past the scene's box no hit test can pass: its margin is the coarsest global voxel's reach
+   * (a hit needs d <= GI_HIT_VOXELS v + thin, and a trilinear value is at most sqrt(3) v below
+   * the distance) */
+  vec2 span = sdf_scene_box_span(o, dir, 2.5 * gsdf_origin(GSDF_LEVELS - 1).w
+                                         + gi_thin_margin());
+  tmax = min(tmax, span.y);
+  t = tmax;
+  if (span.x > span.y || t_start >= tmax) {
+    return false;
+  }
   float split = min(GSDF_MESH_SPLIT, tmax);
   if (t_start < split && gi_trace_mesh(o, dir, t_start, split, t, obj)) {
     return true;

@@ -217,6 +217,22 @@ bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int near
   return listed;
 }
 
+/* The ray's span (t_enter, t_exit) through the object grid's box (every instance's world AABB,
+ * grown by half a voxel, lies in it) grown by `margin` on every side; t_enter > t_exit: it
+ * misses the box. Nothing lies outside the box, so a trace may stop where the ray leaves it. */
+vec2 sdf_scene_box_span(vec3 o, vec3 dir, float margin)
+{
+  vec4 g0 = sdf_grid_texel(0);
+  vec3 lo = g0.xyz - margin;
+  vec3 hi = g0.xyz + floor(sdf_grid_texel(1).xyz + 0.5) * g0.w + margin;
+  vec3 inv = 1.0 / dir;       /* +-inf on an axis-parallel ray: the slabs still order right */
+  vec3 a = (lo - o) * inv;
+  vec3 b = (hi - o) * inv;
+  vec3 near = min(a, b);
+  vec3 far = max(a, b);
+  return vec2(max(max(near.x, near.y), near.z), min(min(far.x, far.y), far.z));
+}
+
 /* Scene distance through the object grid, with sdf_scene_all's contract (voxel_world and nearest
  * of the nearest listed instance; with none listed, the scene's smallest voxel and -1): the
  * minimum of the listed instances and the unlisted ones' bound. Equal to sdf_scene_all wherever
