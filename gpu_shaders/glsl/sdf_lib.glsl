@@ -233,6 +233,18 @@ vec2 sdf_scene_box_span(vec3 o, vec3 dir, float margin)
   return vec2(max(max(near.x, near.y), near.z), min(min(far.x, far.y), far.z));
 }
 
+/* |dir| along the normal of the face through which the ray leaves that grown box: past the
+ * exit, the distance to the box grows at least this fast. */
+float sdf_scene_box_exit_cosine(vec3 o, vec3 dir, float margin)
+{
+  vec4 g0 = sdf_grid_texel(0);
+  vec3 lo = g0.xyz - margin;
+  vec3 hi = g0.xyz + floor(sdf_grid_texel(1).xyz + 0.5) * g0.w + margin;
+  vec3 far = max((lo - o) / dir, (hi - o) / dir);
+  vec3 a = abs(dir);
+  return far.x <= far.y && far.x <= far.z ? a.x : (far.y <= far.z ? a.y : a.z);
+}
+
 /* Scene distance through the object grid, with sdf_scene_all's contract (voxel_world and nearest
  * of the nearest listed instance; with none listed, the scene's smallest voxel and -1): the
  * minimum of the listed instances and the unlisted ones' bound. Equal to sdf_scene_all wherever
