@@ -529,6 +529,8 @@ def run_lumen(ctx, overrides=()):
     notes.append(f"bake {last.objects} objects, {last.bricks} bricks, {last.cards} cards")
     if compile_s >= 0.005:
         notes.append(f"warm-up compile {compile_s:.2f} s")
+    if R.get("gi_bounces"):
+        notes.append(f"{R['gi_bounces']} bounces")
     frame = {k: round(v, 3) for k, v in R.items()
              if k.endswith("_seconds") and isinstance(v, (int, float))}
     return dict(image=passes["Combined"][..., :3], seconds=seconds, warmup=warm,

@@ -339,6 +339,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         textures["Diffuse Indirect"] = comp["textures"]["indirect"]
         gi_info = dict(gi_seconds=gi_out["timings"]["total"], gi_timings=gi_out["timings"],
                        gi_iterations=gi_out["iterations"], gi_converged=gi_out["converged"],
+                       gi_bounces=gi_out["bounces"],
                        gi_progress=gi_out["progress"],
                        gi_sc_tiles=(gi_out["sc_tiles"], gi_out["sc_tiles_total"]),
                        gi_settings=gi_cfg.__dict__.copy(),

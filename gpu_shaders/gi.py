@@ -24,7 +24,9 @@
 
 `indirect_light` returns the per-pixel indirect irradiance texture. For F12 renders
 (`final=True`) everything accumulated is reset first and GISettings.render_schedule() runs:
-bounces - 1 surface-cache iterations, then render_frames iterations of cache (one more bounce
+bounces - 1 surface-cache iterations (with GISettings.converge_bounces, more until
+gi_settings.bounces_converged says the cache's total light is within bounce_tolerance of its
+limit: a small read-back per warm-up), then render_frames iterations of cache (one more bounce
 each) and probes (averaged), so a render is deterministic. In the viewport one iteration runs per redraw, blended into the
 history (exponential over `history` frames; reset when the camera or the scene changes).
 Needs a GPU context.
@@ -35,7 +37,7 @@ import time
 
 import numpy as np
 
-from .gi_settings import GISettings
+from .gi_settings import MAX_BOUNCES, GISettings, bounces_converged
 
 
 def _global_sdf(state, gi: GISettings):
@@ -130,8 +132,12 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                              rays=probes.res ** 2)
     state.screen_trace = screen
     if final:
-        schedule = gi.render_schedule()
+        schedule = list(gi.render_schedule())
         share = gi.render_sc_share()
+        warm = sum(1 for _, px in schedule if px is None)
+        if gi.converge_bounces and warm < 2:      # two changes estimate the bounces left
+            schedule[warm:warm] = [(gi.cache_blend, None)] * (2 - warm)
+            warm = 2
     else:
         # one iteration; the surface cache's tiles take one more bounce per update, then average
         # (plan() above)
@@ -145,7 +151,11 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     split_frame = probes.frames if probes.history is not None else 0
     result, relit, gathered, last = None, 0, 0, None
     relight = final or scene_changed         # the voxel lighting holds light from before a reset
-    for sc_blend, px_blend in schedule:
+    totals = [0.0]           # F12: the cache's total indirect light after each warm-up
+    j = 0
+    while j < len(schedule):
+        sc_blend, px_blend = schedule[j]
+        j += 1
         frame = state.gi_frame
         state.gi_frame += 1
         a = time.perf_counter()
@@ -210,6 +220,16 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         timings["voxel_lighting"] += (v - b) + (c2 - c)
         timings["sc_indirect"] += c - v
         timings["probes"] += time.perf_counter() - c2
+        if final and gi.converge_bounces and px_blend is None and sc_blend is not None:
+            # F12 bounces until converged (gi_settings.bounces_converged): one small read-back
+            # per warm-up iteration, at most MAX_BOUNCES - 1 of them
+            chk = time.perf_counter()
+            totals.append(cache.indirect_total())
+            timings["bounce_check"] = timings.get("bounce_check", 0.0) + time.perf_counter() - chk
+            if j == warm and warm < MAX_BOUNCES - 1 \
+                    and not bounces_converged(totals, gi.bounce_tolerance):
+                schedule.insert(j, (sc_blend, None))
+                warm += 1
     timings.update(setup=t1 - t0, sc_direct=t2 - t1, total=time.perf_counter() - t0)
     if final:
         progress = (len(schedule), len(schedule))
@@ -218,6 +238,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         n = h * split                    # redraws: each pixel's `history` turns, one per split
         progress = (min(probes.frames, int(cache.pages.count.min(initial=h)) * split, n), n)
     return {"texture": result, "timings": timings, "iterations": len(schedule),
+            "bounces": 1 + sum(1 for _, px in schedule if px is None) if final else None,
             "progress": progress,
             "sc_tiles": relit, "sc_tiles_total": len(cache.pages),
             "converged": final or (probes.frames >= gi.history * split

@@ -45,6 +45,7 @@ QUALITIES = ("OFF",) + tuple(PRESETS)
 CACHE_TEXELS_PER_FRAME = 0         # viewport surface-cache texels per frame (0: the preset's)
 MIN_PROBES_ACROSS = 16             # screen probes across an image's shorter side, at least
 MIN_PROBE_RES = 8                  # octahedral texels per side a halved-tile probe keeps, at least
+MAX_BOUNCES = 16                   # F12 bounces at most (the scene's Bounces setting's maximum)
 VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split by default (1, 4 or 16;
                                    # the scene's viewport_split, Viewport > Spread over)
 
@@ -53,6 +54,9 @@ VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split by default 
 class GISettings:
     quality: str = "MEDIUM"        # OFF: direct light and SDF sky occlusion only
     bounces: int = 3               # surface-cache bounces an F12 render converges before gathering
+                                   # (with converge_bounces: at least; bounces_converged)
+    converge_bounces: bool = True  # F12: more bounces (up to MAX_BOUNCES) until the cache's light
+    bounce_tolerance: float = 0.02  # is estimated within this share of where it converges
     render_frames: int = 8         # F12: frames of jittered probes averaged (temporal accumulation)
     aa_samples: int = 32           # F12: jittered G-buffers averaged (antialias.py; 1: off)
     probe_tile: int = 16
@@ -178,6 +182,23 @@ class GISettings:
         return min(max(float(self.render_sc_fraction), (self.bounces - 1) / n, 1.0 / n), 1.0)
 
 
+def bounces_converged(totals, tolerance: float) -> bool:
+    """Whether an F12 render's surface cache has taken enough bounces: `totals` is its total
+    indirect light after each warm-up iteration, from the reset (0) on. Each bounce adds about r
+    times the last one's change (r: the ratio of the last two changes, at most 0.9), so the light
+    still missing is about |last change| r / (1 - r); converged when that is within `tolerance`
+    of the total. Why: a fixed count stops a room lit through a window short (bench/quality.py
+    window: bounces 12 is 5% brighter than 3) and spends bounces an open scene does not need."""
+    e = [float(x) for x in totals]
+    if len(e) < 3:
+        return False
+    d1, d2 = abs(e[-2] - e[-3]), abs(e[-1] - e[-2])
+    if e[-1] <= 0.0 or d2 == 0.0:
+        return True
+    r = min(d2 / d1, 0.9) if d1 > 0.0 else 0.9
+    return d2 * r / (1.0 - r) <= tolerance * abs(e[-1])
+
+
 def settings(quality: str = "MEDIUM", **overrides) -> GISettings:
     if quality not in QUALITIES:
         raise ValueError(f"GI quality {quality!r}: use one of {QUALITIES}")
@@ -207,6 +228,7 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
                     screen_trace=bool(getattr(s, "screen_trace", d.screen_trace)),
                     adaptive_probes=bool(getattr(s, "adaptive_probes", d.adaptive_probes)),
                     probe_importance=bool(getattr(s, "probe_importance", d.probe_importance)),
+                    converge_bounces=bool(getattr(s, "converge_bounces", d.converge_bounces)),
                     **extra)
     if out.split > 1 and "sc_tiles" not in extra:   # the preset's budget, spread as the rest
         out = replace(out, sc_tiles=max(out.sc_tiles // out.split, 1))

@@ -246,6 +246,11 @@ class SurfaceCache:
                             out_image=self.indirect, delta_image=self.delta)  # in place: blend
         return k
 
+    def indirect_total(self) -> float:
+        """Sum of E_indirect (rgb) over the lighting atlas: F12's bounce convergence
+        (gi_settings.bounces_converged), read back once per warm-up iteration."""
+        return float(compute.read(self.indirect)[..., :3].sum(dtype=np.float64))
+
     def combine(self, resources: SceneResources):
         """surface_cache_combine: final = (direct + indirect) * albedo / pi + emissive."""
         out = _tex(self.packed.lighting_size, 'RGBA32F')

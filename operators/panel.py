@@ -210,6 +210,7 @@ class RENDER_PT_lumen_gi_render(_RenderPanel, bpy.types.Panel):
         sub = col.column()
         sub.active = s.render_quality != 'OFF'
         sub.prop(s, "bounces")
+        sub.prop(s, "converge_bounces")
         sub.prop(s, "render_frames", text="Frames")
         col.prop(s, "aa_samples", text="Anti-Aliasing")
 

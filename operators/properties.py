@@ -145,6 +145,12 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                     "More brightens deep corners and rooms lit through an opening; each bounce "
                     "adds render time. The viewport keeps adding bounces while it is still",
         default=GI.bounces, min=1, max=16)
+    converge_bounces: BoolProperty(
+        name="Converge Bounces",
+        description="Final render: keep adding bounces beyond Bounces (up to 16) until the "
+                    "bounced light stops changing, as a room lit through a window needs; an "
+                    "open scene stops at Bounces. Off: exactly Bounces",
+        default=GI.converge_bounces)
     render_frames: IntProperty(
         name="Render Frames",
         description="Frames a final render averages, each with its samples slightly moved. More "

@@ -56,6 +56,7 @@ scene.render.resolution_percentage = 100
 scene.lumen.engine.render_quality = "LOW"
 scene.lumen.engine.render_frames = 2
 scene.lumen.engine.bounces = 6
+scene.lumen.engine.converge_bounces = False   # the same iterations with and without relaxation
 out = {}
 if MODE == "room":
     mat = principled("Wall", (0.8, 0.8, 0.8), emission=(1.0, 1.0, 1.0), strength=0.2)
