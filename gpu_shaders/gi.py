@@ -163,7 +163,9 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         b = time.perf_counter()
         if voxels is not None:       # its levels are the clipmaps': where they moved, follow;
             # after a reset, all from the reset light (an F12 render is the same every time)
-            voxels.update(res, gsdf, cache, frame, everything=relight, aligned_only=not relight)
+            # (objects changed: relight, so every level's rays are traced again here)
+            voxels.update(res, gsdf, cache, frame, everything=relight, aligned_only=not relight,
+                          geometry=objects_changed)
             relight = False
         v = time.perf_counter()
         if sc_blend is not None:

@@ -17,6 +17,12 @@ Per level update, two passes (glsl/voxel_lighting_*.comp.glsl):
                            lecture's "compact")
     voxel_lighting_update  per listed voxel: 6 short rays along the axes through the tile's
                            objects only, the surface cache's final light at each hit
+A level's list and its faces' hits (object, local point and normal) depend on the geometry only,
+so they are kept per level: while the level's global SDF has not been built or scrolled again and
+no object changed (`update(geometry=True)` says one did), an update skips the tiles pass and the rays and samples
+the surface cache at the kept hits (vl_trace 0). Why: an F12 render relights every level after
+each of its 10-20 iterations, the same rays every time (bench/pass_profile.py --f12 --scene
+window: voxel_lighting_update 11% of the render). Memory: 12 RGBA32F texels per list entry.
 Why a list: llvmpipe runs every invocation through all of a shader's code (divergent branches
 are masked, not skipped): measured on the 48^3 levels of bench/frame_time.py's scene, the heavy
 shader over every voxel took 230-290 ms per level, ~30 ms of it with every invocation returning
@@ -58,7 +64,9 @@ TILES_PASS = compute.Pass("voxel_lighting_tiles",
                           push=(('INT', 'vl_level'), ('FLOAT', 'vl_reach'),
                                 ('INT', 'vl_capacity')))
 UPDATE = compute.Pass("voxel_lighting_update", samplers=("vl_tiles", "vl_list"),
-                      images=(("out_image", FORMAT),), push=(('INT', 'vl_level'),))
+                      images=(("out_image", FORMAT), ("vl_hits", 'RGBA32F', {'READ', 'WRITE'})),
+                      push=(('INT', 'vl_level'), ('INT', 'vl_trace')))
+HIT_TEXELS = 2 * FACES   # vl_hits texels per list entry
 VIEW = compute.Pass("voxel_lighting_view", samplers=("gbuf_position", "gbuf_normal"),
                     push=(('VEC3', 'cam_pos'),))
 
@@ -125,7 +133,12 @@ class VoxelLighting:
         self.texture = compute.texture((LEVELS * FACES * n, n * n), FORMAT)
         tn = n // TILE
         self.tiles = compute.texture((TILE_OBJECTS * tn, LEVELS * tn * tn), 'R32F')
-        self.list = compute.texture((LIST_WIDTH, self.capacity // LIST_WIDTH), 'R32F')
+        rows = self.capacity // LIST_WIDTH
+        self.lists = [compute.texture((LIST_WIDTH, rows), 'R32F') for _ in range(LEVELS)]
+        self.hits = [None] * LEVELS           # per level, made at its first traced update
+        self.list = self.lists[0]             # the last updated level's list (read_count)
+        self.traced = [None] * LEVELS         # (origin, global-SDF build, epoch) of the hits
+        self.epoch = 0                        # counts update(geometry=True)
         self.counter = compute.texture((1, 1), 'R32I')
         self.gsdf = None                      # the GlobalSDF the levels were made for
         self.origins = [None] * LEVELS        # that clipmap's origin at each level's last update
@@ -133,18 +146,23 @@ class VoxelLighting:
         self.log = []                         # (frame, level, seconds)
 
     def update(self, resources, gsdf, cache, frame: int, everything: bool = False,
-               aligned_only: bool = False) -> list:
+               aligned_only: bool = False, geometry: bool = False) -> list:
         """Relight levels from the surface cache's final light (after gsdf.update of the same
         frame: the levels read its origins and texels); returns the levels updated.
         aligned_only (before a frame's rays): only the levels whose clipmap moved or that were
         never built, so that every voxel sits where its global-SDF texel does. Otherwise (after
         the frame's combine, so this combine's light is what the rays read next, at voxel hits
         as at mesh hits): the levels due this frame (level k every 2^k frames, unless already
-        done this frame), or all of them with `everything`."""
+        done this frame), or all of them with `everything`.
+        geometry: the objects may have changed since the last update (every level's rays are
+        traced again; otherwise a level whose clipmap stayed reuses its hits)."""
         if gsdf.n != self.n:
             raise ValueError("voxel lighting and global SDF differ in N")
         if gsdf is not self.gsdf:
             self.gsdf, self.origins = gsdf, [None] * LEVELS
+            geometry = True
+        if geometry:
+            self.epoch += 1
         if not cache.has_cards:
             return []
         done = []
@@ -166,6 +184,17 @@ class VoxelLighting:
     def _dispatch(self, level: int, resources, gsdf, cache):
         tn = self.n // TILE
         v = gsdf.voxels[level]
+        self.list = self.lists[level]
+        # the level's global-SDF build (its list reads that field) and the objects (its rays)
+        key = (gsdf.origins[level], gsdf.last_update[level], self.epoch)
+        if self.traced[level] == key:         # the same list and hits: new light only
+            UPDATE.run((LIST_WIDTH, self.capacity // LIST_WIDTH), scene=resources, cache=cache,
+                       gsdf=gsdf, vl_tiles=self.tiles, vl_list=self.list, vl_level=level,
+                       vl_trace=0, out_image=self.texture, vl_hits=self.hits[level])
+            return
+        if self.hits[level] is None:
+            self.hits[level] = compute.texture(
+                (LIST_WIDTH * HIT_TEXELS, self.capacity // LIST_WIDTH), 'RGBA32F')
         self.list.clear(format='FLOAT', value=(-1.0,))
         self.counter.clear(format='INT', value=(0,))
         # a face ray reaches one voxel past its voxel, plus the thin-wall hit shell
@@ -176,7 +205,8 @@ class VoxelLighting:
                        vl_counter=self.counter)
         UPDATE.run((LIST_WIDTH, self.capacity // LIST_WIDTH), scene=resources, cache=cache,
                    gsdf=gsdf, vl_tiles=self.tiles, vl_list=self.list, vl_level=level,
-                   out_image=self.texture)
+                   vl_trace=1, out_image=self.texture, vl_hits=self.hits[level])
+        self.traced[level] = key
 
     def read_count(self) -> int:
         """Voxels the last level update listed (== capacity: the list was full, voxels may have
@@ -210,4 +240,6 @@ class VoxelLighting:
         """GPU bytes of the radiance texture, the tiles' object lists and the update list."""
         return {"voxel_lighting": self.texture.width * self.texture.height * BYTES[FORMAT],
                 "voxel_lighting_tiles": (self.tiles.width * self.tiles.height
-                                         + self.list.width * self.list.height + 1) * 4}
+                                         + self.list.width * self.list.height * LEVELS + 1) * 4,
+                "voxel_lighting_hits": sum(h.width * h.height * 16 for h in self.hits
+                                           if h is not None)}

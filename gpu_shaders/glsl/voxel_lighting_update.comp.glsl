@@ -15,7 +15,14 @@
  * gi_trace_mesh's thin-wall rule), and at its hit the surface cache's final light
  * (sc_sample_local: the object's own cards, without the thin-wall texel guard, which would loop
  * over every object).
- * Push constants: vl_level. Samplers: vl_tiles, vl_list (step 1). Output out_image (RGBA16F).
+ * The hits depend on the geometry only: with vl_trace = 1 each face's ray is traced and its hit
+ * stored in vl_hits (two texels per face: object-local point and object + 1 (0: no surface),
+ * local normal and distance in voxels); with vl_trace = 0 (the same list: the level's clipmap
+ * and the objects unchanged since) the stored hits are read and only the surface cache is
+ * sampled again, so the light of a new bounce costs no rays (voxel_lighting.py).
+ * Push constants: vl_level, vl_trace. Samplers: vl_tiles, vl_list (step 1). Output out_image
+ * (RGBA16F); vl_hits (RGBA32F, read-write: entry (x, y) of the list, face f at texels
+ * (12 x + 2 f + c, y)).
  */
 #define VL_STEPS 32
 
@@ -93,6 +100,22 @@ void main()
   ivec3 rel = gsdf_imod(t - o, n);               /* the voxel's cell is o + rel */
   vec3 centre = (vec3(o + rel) + 0.5) * v;
 
+  if (vl_trace == 0) {
+    for (int f = 0; f < VL_FACES; f++) {
+      vec4 a = imageLoad(vl_hits, ivec2(12 * id.x + 2 * f, id.y));
+      vec4 face = vec4(0.0);
+      if (a.w > 0.5) {
+        vec4 b = imageLoad(vl_hits, ivec2(12 * id.x + 2 * f + 1, id.y));
+        int obj = int(a.w - 0.5);
+        float h = sdf_object_texel(obj, 4).w;
+        float w;
+        vec3 L = sc_sample_local(obj, a.xyz, b.xyz, h, inverse(sc_object_w2l(obj)), 0.0, w);
+        face = w > 0.0 ? vec4(L, vl_face_code(b.w, true)) : vec4(0.0, 0.0, 0.0, vl_face_code(b.w, false));
+      }
+      imageStore(out_image, vl_texel(vl_level, f, t, n), face);
+    }
+    return;
+  }
   vl_count = 0;
   ivec2 at = vl_tile_texel(vl_level, rel / VL_TILE, n);
   for (int j = 0; j < VL_TILE_OBJECTS; j++) {
@@ -105,6 +128,8 @@ void main()
   }
   for (int f = 0; f < VL_FACES; f++) {
     vec4 face = vec4(0.0);
+    vec4 hit_a = vec4(0.0);
+    vec4 hit_b = vec4(0.0);
     vec3 q;
     int obj;
     if (vl_face_ray(centre, SC_AXES[f], VL_REACH * v, q, obj)) {
@@ -115,7 +140,11 @@ void main()
       vec3 L = sc_sample_local(obj, pl, nl, h, inverse(sc_object_w2l(obj)), 0.0, w);
       float s = dot(q - centre, SC_AXES[f]) / v;
       face = w > 0.0 ? vec4(L, vl_face_code(s, true)) : vec4(0.0, 0.0, 0.0, vl_face_code(s, false));
+      hit_a = vec4(pl, float(obj) + 1.0);
+      hit_b = vec4(nl, s);
     }
     imageStore(out_image, vl_texel(vl_level, f, t, n), face);
+    imageStore(vl_hits, ivec2(12 * id.x + 2 * f, id.y), hit_a);
+    imageStore(vl_hits, ivec2(12 * id.x + 2 * f + 1, id.y), hit_b);
   }
 }

@@ -163,6 +163,28 @@ def job():
     np.save("lookup.npy", compute.read(out)[0])
     np.save("lookup_dirs.npy", D)
 
+    # new light, the same geometry: the kept hits (no tiles pass, no rays) give what a fresh
+    # trace gives, exactly
+    from lumen_gi.gpu_shaders import voxel_lighting as vl_module
+    final = sc.read("final")
+    final[..., :3] *= np.linspace(0.5, 2.0, final.shape[1], dtype=np.float32)[None, :, None]
+    sc.final = gpu.types.GPUTexture((final.shape[1], final.shape[0]), format='RGBA32F',
+                                    data=float_buffer(final))
+    calls = []
+    run_tiles = vl_module.TILES_PASS.run
+    vl_module.TILES_PASS.run = lambda *a, **k: (calls.append(1), run_tiles(*a, **k))[1]
+    try:
+        vl.update(res, g, sc, 2, everything=True)
+        OUT["relit_tiles_passes"] = len(calls)
+        fresh = VoxelLighting({N})
+        fresh.update(res, g, sc, 2, everything=True)
+        OUT["fresh_tiles_passes"] = len(calls) - OUT["relit_tiles_passes"]
+    finally:
+        vl_module.TILES_PASS.run = run_tiles
+    relit, traced = vl.read(), fresh.read()
+    OUT["relit_equal"] = bool(np.array_equal(relit, traced))
+    OUT["relit_changed"] = bool(not np.array_equal(relit, np.load("faces.npy")))
+
 run_job(job)
 emit(**OUT)
 """
@@ -173,6 +195,10 @@ def test_voxel_faces_next_to_an_emitting_wall(tmp_path):
     assert run.returncode == 0, run.explain()
     out = run.result
     assert out["levels"] == [0, 1, 2, 3] and out["again"] == [0]
+    # a relight with new light and the same geometry reuses the hits: no tiles pass, and the
+    # faces a fresh trace gives
+    assert out["relit_tiles_passes"] == 0 and out["fresh_tiles_passes"] == 4
+    assert out["relit_equal"] and out["relit_changed"]
     assert out["stats"]["voxel_lighting"] == 24 * N * N * N * 8           # RGBA16F, 4 levels x 6
     faces = np.load(tmp_path / "faces.npy")                 # [level, face, z, y, x, 4]
     final = np.load(tmp_path / "final.npy")
