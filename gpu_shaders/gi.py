@@ -37,7 +37,8 @@ import time
 
 import numpy as np
 
-from .gi_settings import MAX_BOUNCES, GISettings, bounces_converged
+from .frame_noise import FrameNoise
+from .gi_settings import MAX_BOUNCES, MIN_RENDER_FRAMES, GISettings, bounces_converged
 
 
 def _global_sdf(state, gi: GISettings):
@@ -152,6 +153,12 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     result, relit, gathered, last = None, 0, 0, None
     relight = final or scene_changed         # the voxel lighting holds light from before a reset
     totals = [0.0]           # F12: the cache's total indirect light after each warm-up
+    noise = None                 # F12: the gathered frames' noise (two read-backs here)
+    if final and direct is not None:
+        from . import compute
+        noise = FrameNoise(compute.read(direct),
+                           compute.read(gbuf["textures"]["position"])[..., 3] > 0.5)
+    noise_log = []
     j = 0
     while j < len(schedule):
         sc_blend, px_blend = schedule[j]
@@ -214,6 +221,15 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                                     **rc)
                 gathered += 1
             last = new
+            if noise is not None:            # F12: one read-back per gathered frame
+                chk = time.perf_counter()
+                noise.add(compute.read(new))
+                noise_log.append(noise.relative_noise())
+                timings["frame_noise"] = timings.get("frame_noise", 0.0) \
+                    + time.perf_counter() - chk
+                if gi.noise_threshold > 0.0 and gathered >= MIN_RENDER_FRAMES \
+                        and noise_log[-1] <= gi.noise_threshold:
+                    del schedule[j:]             # converged: the frames left are not needed
             if split > 1:
                 result = probes.temporal_split(new, gbuf, cam_pos, split, gi.history)
             else:
@@ -241,6 +257,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         progress = (min(probes.frames, int(cache.pages.count.min(initial=h)) * split, n), n)
     return {"texture": result, "timings": timings, "iterations": len(schedule),
             "bounces": 1 + sum(1 for _, px in schedule if px is None) if final else None,
+            "frame_noise": noise_log,
             "progress": progress,
             "sc_tiles": relit, "sc_tiles_total": len(cache.pages),
             "converged": final or (probes.frames >= gi.history * split

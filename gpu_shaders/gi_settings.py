@@ -45,6 +45,7 @@ QUALITIES = ("OFF",) + tuple(PRESETS)
 CACHE_TEXELS_PER_FRAME = 0         # viewport surface-cache texels per frame (0: the preset's)
 MIN_PROBES_ACROSS = 16             # screen probes across an image's shorter side, at least
 MIN_PROBE_RES = 8                  # octahedral texels per side a halved-tile probe keeps, at least
+MIN_RENDER_FRAMES = 4              # F12 frames averaged before the noise threshold may end it
 MAX_BOUNCES = 16                   # F12 bounces at most (the scene's Bounces setting's maximum)
 VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split by default (1, 4 or 16;
                                    # the scene's viewport_split, Viewport > Spread over)
@@ -57,7 +58,11 @@ class GISettings:
                                    # (with converge_bounces: at least; bounces_converged)
     converge_bounces: bool = True  # F12: more bounces (up to MAX_BOUNCES) until the cache's light
     bounce_tolerance: float = 0.02  # is estimated within this share of where it converges
-    render_frames: int = 8         # F12: frames of jittered probes averaged (temporal accumulation)
+    render_frames: int = 8         # F12: frames of jittered probes averaged (temporal accumulation;
+                                   # with noise_threshold > 0: at most)
+    noise_threshold: float = 0.01  # F12: stop averaging frames (after MIN_RENDER_FRAMES) once the
+                                   # mean's relative noise is below this (frame_noise.py; 0: off;
+                                   # Cycles' adaptive sampling default)
     aa_samples: int = 32           # F12: jittered G-buffers averaged (antialias.py; 1: off)
     probe_tile: int = 16
     probe_res: int = 8
@@ -229,6 +234,7 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
                     adaptive_probes=bool(getattr(s, "adaptive_probes", d.adaptive_probes)),
                     probe_importance=bool(getattr(s, "probe_importance", d.probe_importance)),
                     converge_bounces=bool(getattr(s, "converge_bounces", d.converge_bounces)),
+                    noise_threshold=float(getattr(s, "noise_threshold", d.noise_threshold)),
                     **extra)
     if out.split > 1 and "sc_tiles" not in extra:   # the preset's budget, spread as the rest
         out = replace(out, sc_tiles=max(out.sc_tiles // out.split, 1))

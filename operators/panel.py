@@ -212,6 +212,7 @@ class RENDER_PT_lumen_gi_render(_RenderPanel, bpy.types.Panel):
         sub.prop(s, "bounces")
         sub.prop(s, "converge_bounces")
         sub.prop(s, "render_frames", text="Frames")
+        sub.prop(s, "noise_threshold")
         col.prop(s, "aa_samples", text="Anti-Aliasing")
 
 

@@ -156,6 +156,13 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
         description="Frames a final render averages, each with its samples slightly moved. More "
                     "removes blotches and noise from the bounced light; render time grows with it",
         default=GI.render_frames, min=1, max=256)
+    noise_threshold: FloatProperty(
+        name="Noise Threshold",
+        description="Final render: stop averaging frames early (after 4) once the bounced "
+                    "light's remaining noise, relative to what each pixel shows, is below this, "
+                    "as Cycles' adaptive sampling does. Lower is cleaner and slower; 0 always "
+                    "renders every frame",
+        default=GI.noise_threshold, min=0.0, max=1.0, precision=4, step=0.1)
     aa_samples: IntProperty(
         name="Anti-Aliasing Samples",
         description="Final render: the image is averaged over this many slightly moved "

@@ -57,6 +57,8 @@ def render(size, frames, **cfg):
     scene.lumen.engine.render_quality = "LOW"
     scene.lumen.engine.render_frames = frames
     scene.lumen.engine.bounces = 1
+    scene.lumen.engine.converge_bounces = False   # the iterations this test counts
+    scene.lumen.engine.noise_threshold = 0.0
     bpy.ops.render.render()
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("traceback", R.get("error"))
