@@ -287,6 +287,7 @@ def main():
         scene.lumen.engine.render_quality = args.quality
         scene.lumen.engine.render_frames = 1
         scene.lumen.engine.bounces = 1
+        scene.lumen.engine.converge_bounces = False     # exactly one GI iteration
         ours = time_renders(args.repeat)
         R = engine.LAST_RENDER
         if "error" in R:

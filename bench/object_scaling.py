@@ -122,6 +122,7 @@ def measure(n: int, args, tmp: Path) -> dict:
     scene.lumen.engine.render_quality = scene.lumen.engine.viewport_quality = args.quality
     scene.lumen.engine.render_frames = 1
     scene.lumen.engine.bounces = 1
+    scene.lumen.engine.converge_bounces = False     # exactly one GI iteration
     rows = []
     timings = defaultdict(float)          # --passes: this redraw's or render's {pass: seconds}
     per_draw = []

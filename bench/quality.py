@@ -531,6 +531,8 @@ def run_lumen(ctx, overrides=()):
         notes.append(f"warm-up compile {compile_s:.2f} s")
     if R.get("gi_bounces"):
         notes.append(f"{R['gi_bounces']} bounces")
+    if R.get("gi_frame_noise"):
+        notes.append(f"{len(R['gi_frame_noise'])} frames, noise {R['gi_frame_noise'][-1]:.4f}")
     frame = {k: round(v, 3) for k, v in R.items()
              if k.endswith("_seconds") and isinstance(v, (int, float))}
     return dict(image=passes["Combined"][..., :3], seconds=seconds, warmup=warm,
