@@ -37,6 +37,7 @@ import time
 
 import numpy as np
 
+from . import compute
 from .frame_noise import FrameNoise
 from .gi_settings import MAX_BOUNCES, MIN_RENDER_FRAMES, GISettings, bounces_converged
 
@@ -155,7 +156,6 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     totals = [0.0]           # F12: the cache's total indirect light after each warm-up
     noise = None                 # F12: the gathered frames' noise (two read-backs here)
     if final and direct is not None:
-        from . import compute
         noise = FrameNoise(compute.read(direct),
                            compute.read(gbuf["textures"]["position"])[..., 3] > 0.5)
     noise_log = []
