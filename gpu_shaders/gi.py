@@ -141,6 +141,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
             schedule[warm:warm] = [(gi.cache_blend, None)] * (2 - warm)
             warm = 2
     else:
+        warm = 0
         # one iteration; the surface cache's tiles take one more bounce per update, then average
         # (plan() above)
         m = probes.history is not None and probes.frames or 0
@@ -256,7 +257,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         n = h * split                    # redraws: each pixel's `history` turns, one per split
         progress = (min(probes.frames, int(cache.pages.count.min(initial=h)) * split, n), n)
     return {"texture": result, "timings": timings, "iterations": len(schedule),
-            "bounces": 1 + sum(1 for _, px in schedule if px is None) if final else None,
+            "bounces": 1 + warm if final else None,
             "frame_noise": noise_log,
             "progress": progress,
             "sc_tiles": relit, "sc_tiles_total": len(cache.pages),

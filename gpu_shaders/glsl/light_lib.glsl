@@ -66,9 +66,10 @@ float cone_visibility_shell(vec3 p, vec3 n, vec3 dir, float t_max, float k, floa
    * (c: the axis's cosine to the exit face), so k (d - thin) / t >= k min(7 M / (8 t_out), c)
    * (thin <= half a voxel <= M / 8); and a wide cone's sample beyond the band does not count. */
   float margin = sdf_grid_texel(2).x;
-  vec2 span = sdf_scene_box_span(o, dir, margin);
+  float c;
+  vec2 span = sdf_scene_box_span(o, dir, margin, c);
   float t_out = max(span.y, 0.0);
-  float past = k * min(0.875 * margin / max(t_out, 1e-6), sdf_scene_box_exit_cosine(o, dir, margin));
+  float past = k * min(0.875 * margin / max(t_out, 1e-6), c);
   for (int i = 0; i < SHADOW_STEPS; i++) {
     if (t >= t_out && (t_shell > 0.0 || past >= vis)) {
       break;

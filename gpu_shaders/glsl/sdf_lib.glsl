@@ -219,8 +219,10 @@ bool sdf_scene_grid(vec3 pw, out float best, out float voxel_world, out int near
 
 /* The ray's span (t_enter, t_exit) through the object grid's box (every instance's world AABB,
  * grown by half a voxel, lies in it) grown by `margin` on every side; t_enter > t_exit: it
- * misses the box. Nothing lies outside the box, so a trace may stop where the ray leaves it. */
-vec2 sdf_scene_box_span(vec3 o, vec3 dir, float margin)
+ * misses the box. Nothing lies outside the box, so a trace may stop where the ray leaves it.
+ * exit_cosine: |dir| along the normal of the face the ray leaves through (past the exit, the
+ * distance to the box grows at least this fast). */
+vec2 sdf_scene_box_span(vec3 o, vec3 dir, float margin, out float exit_cosine)
 {
   vec4 g0 = sdf_grid_texel(0);
   vec3 lo = g0.xyz - margin;
@@ -230,19 +232,15 @@ vec2 sdf_scene_box_span(vec3 o, vec3 dir, float margin)
   vec3 b = (hi - o) * inv;
   vec3 near = min(a, b);
   vec3 far = max(a, b);
+  vec3 c = abs(dir);
+  exit_cosine = far.x <= far.y && far.x <= far.z ? c.x : (far.y <= far.z ? c.y : c.z);
   return vec2(max(max(near.x, near.y), near.z), min(min(far.x, far.y), far.z));
 }
 
-/* |dir| along the normal of the face through which the ray leaves that grown box: past the
- * exit, the distance to the box grows at least this fast. */
-float sdf_scene_box_exit_cosine(vec3 o, vec3 dir, float margin)
+vec2 sdf_scene_box_span(vec3 o, vec3 dir, float margin)
 {
-  vec4 g0 = sdf_grid_texel(0);
-  vec3 lo = g0.xyz - margin;
-  vec3 hi = g0.xyz + floor(sdf_grid_texel(1).xyz + 0.5) * g0.w + margin;
-  vec3 far = max((lo - o) / dir, (hi - o) / dir);
-  vec3 a = abs(dir);
-  return far.x <= far.y && far.x <= far.z ? a.x : (far.y <= far.z ? a.y : a.z);
+  float exit_cosine;
+  return sdf_scene_box_span(o, dir, margin, exit_cosine);
 }
 
 /* Scene distance through the object grid, with sdf_scene_all's contract (voxel_world and nearest
