@@ -11,14 +11,17 @@ For N = 10, 100, 1000 (`--counts`) in one process, same resolution:
              last still frame from LAST_RENDER (extract, sync, G-buffer, direct, GI)
   F12        bpy.ops.render.render at `--size`^2, render_frames = bounces = 1 (one GI iteration),
              one warm-up then `--repeat` timed, median and split
-and the ratios N=max / N=min. Shader compilation happens in the first N's warm-ups.
+  EEVEE      (--eevee) the baseline in the same run: EEVEE's render at `--size`^2 with 1 sample
+             (a viewport-like frame) and with its default 64, one warm-up then `--repeat`, median
+and the ratios N=max / N=min (EEVEE's too: how much the scene itself grew for a rasteriser).
+Shader compilation happens in the first N's warm-ups.
 --passes: every compute dispatch timed by shader (bench/pass_profile.py's timed_dispatches; on
 llvmpipe a dispatch runs before it returns), per N the still viewport frames' medians and the
 last F12's sums, and a table of each pass at N=min against N=max, largest growth first: what
 grows with the object count.
 
     .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
-                                             [--quality MEDIUM] [--f12-max N] [--passes]
+                                             [--quality MEDIUM] [--f12-max N] [--passes] [--eevee]
     .venv/bin/python bench/object_scaling.py --gbuffer-only [--counts ...] [--size 128]
 """
 from __future__ import annotations
@@ -148,6 +151,7 @@ def measure(n: int, args, tmp: Path) -> dict:
                             for k in {k for r in still for k in r}})
         if n > args.f12_max:
             return dict(n=n, bake=bake_seconds, view=view, f12=None,
+                        eevee=eevee_times(scene, args.repeat) if args.eevee else None,
                         triangles=rows[-1]["triangles"])
         times = []
         for _ in range(args.repeat + 1):
@@ -164,7 +168,29 @@ def measure(n: int, args, tmp: Path) -> dict:
     f12 = dict(median=statistics.median(times[1:]) * 1000, split=split(R),
                iterations=R.get("gi_iterations", 0), meshes_read=R.get("meshes_read", -1),
                passes={k: v * 1000 for k, v in timings.items()})
-    return dict(n=n, bake=bake_seconds, view=view, f12=f12, triangles=R.get("triangles", 0))
+    eevee = eevee_times(scene, args.repeat) if args.eevee else None
+    return dict(n=n, bake=bake_seconds, view=view, f12=f12, triangles=R.get("triangles", 0),
+                eevee=eevee)
+
+
+def eevee_times(scene, repeat: int) -> dict:
+    """{samples: median ms} of EEVEE's render of `scene` with 1 and 64 samples."""
+    import bpy
+
+    scene.render.engine = [i.identifier for i in
+                           bpy.types.RenderSettings.bl_rna.properties["engine"].enum_items
+                           if i.identifier.startswith("BLENDER_EEVEE")][0]
+    out = {}
+    for samples in (1, 64):
+        scene.eevee.taa_render_samples = samples
+        times = []
+        for _ in range(repeat + 1):
+            t = time.perf_counter()
+            bpy.ops.render.render()
+            times.append(time.perf_counter() - t)
+        out[samples] = statistics.median(times[1:]) * 1000
+    scene.render.engine = "LUMEN_GI"
+    return out
 
 
 def gbuffer_only(counts, size: int, repeat: int) -> list:
@@ -244,6 +270,8 @@ def main():
     ap.add_argument("--density", type=float, default=8.0, help="bake voxels per metre")
     ap.add_argument("--f12-max", type=int, default=1 << 30,
                     help="skip F12 above this many objects (a GI F12 of 1,000 takes hours)")
+    ap.add_argument("--eevee", action="store_true",
+                    help="EEVEE's render with 1 and 64 samples per N: the baseline's own growth")
     ap.add_argument("--passes", action="store_true",
                     help="time every compute dispatch by pass: what grows with N")
     ap.add_argument("--gbuffer-only", action="store_true",
@@ -279,6 +307,9 @@ def main():
             if f is not None:
                 print(f"  F12 (1 GI iteration): median {f['median']:.1f} ms; split ms: "
                       f"{fmt(f['split'])}, meshes read {f['meshes_read']}", flush=True)
+            if r.get("eevee"):
+                print(f"  EEVEE render: 1 sample {r['eevee'][1]:.1f} ms, 64 samples "
+                      f"{r['eevee'][64]:.1f} ms", flush=True)
             if args.passes:
                 for label, d in (("viewport still", v["passes"]),
                                  ("F12", f["passes"] if f is not None else {})):
@@ -292,6 +323,10 @@ def main():
           f"{hi['view']['median'] / lo['view']['median']:.2f}" + (
               f", F12 N={f12[-1]['n']} / N={lo['n']} "
               f"{f12[-1]['f12']['median'] / lo['f12']['median']:.2f}" if len(f12) > 1 else ""))
+    if lo.get("eevee") and hi.get("eevee"):
+        print(f"ratio N={hi['n']} / N={lo['n']}: EEVEE 1 sample "
+              f"{hi['eevee'][1] / lo['eevee'][1]:.2f}, 64 samples "
+              f"{hi['eevee'][64] / lo['eevee'][64]:.2f}")
     for key in ("extract", "sync", "gbuffer", "direct", "gi"):
         a, b = lo["view"]["split"][key], hi["view"]["split"][key]
         print(f"  viewport still {key:8s} {a:8.1f} -> {b:8.1f} ms")

@@ -32,7 +32,9 @@ Per frame, one GLSL pass each:
                             pixel adds the emitters nearer its surface than a ray starts
                             (sc_near_emission); the pixels still without probes go to a list
     screen_probe_fallback   16 rays per listed pixel, one invocation each (full work groups:
-                            traced inside integrate, each group waited on its slowest pixel)
+                            traced inside integrate, each group waited on its slowest pixel);
+                            at most as many rays in all as the uniform probes trace (fewer per
+                            pixel, strata rotating over frames, when the list is long)
     screen_probe_temporal   mix with the history (running mean for F12, exponential in the viewport)
     screen_probe_temporal_split  the viewport with GISettings.split > 1: one pixel of each
                             block integrated per redraw (integrate's px_step, px_phase), its
@@ -87,13 +89,14 @@ INTEGRATE = compute.Pass("screen_probe_integrate",
                          push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'uniform_rows'),
                                ('IVEC2', 'px_phase'), ('INT', 'px_step')))
 FALLBACK_GROUP = 64
+FALLBACK_BUDGET = 1.0      # the fallback's rays per frame, in the uniform probes' ray count
 FALLBACK = compute.Pass("screen_probe_fallback",
                         samplers=GBUF + radiance_cache.SAMPLERS,
                         images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),
                                 ("fb_list", 'RGBA32F', {'READ'}), ("fb_counter", 'R32I', {'READ'}),
                                 ("rc_marks", 'R32F')),
                         push=(('VEC3', 'cam_pos'), ('INT', 'frame'), ('FLOAT', 't_max'),
-                              radiance_cache.CAMERA),
+                              radiance_cache.CAMERA, ('INT', 'fb_budget')),
                         group=(FALLBACK_GROUP, 1, 1))
 TEMPORAL = compute.Pass("screen_probe_temporal", samplers=("indirect_new", "indirect_history"),
                         push=(('FLOAT', 'blend'),))
@@ -255,7 +258,10 @@ class ScreenProbes:
                       out_image=tex["integrated"], fb_list=tex["fb_list"],
                       fb_counter=tex["fb_counter"])
         # the pixels integrate listed: their own rays, in full work groups
+        # its budget: the uniform probes' rays of this redraw (a list of thousands of pixels
+        # among many small objects cost 4x a whole viewport frame at 16 rays each)
         FALLBACK.run(lw * lh, **tracers, frame=int(frame), t_max=float(t_max),
+                     fb_budget=int(FALLBACK_BUDGET * gw * gh * r * r) // (step * step),
                      gbuf_position=gpos, gbuf_normal=gnor, cam_pos=cam,
                      out_image=tex["integrated"], fb_list=tex["fb_list"],
                      fb_counter=tex["fb_counter"],

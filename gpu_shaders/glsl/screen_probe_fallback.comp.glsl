@@ -12,9 +12,14 @@
  * With the world radiance cache on the rays trace ~2 m and take the far field from it
  * (rc_radiance), marking the cells around the pixel for the next frame's probes (rc_marks).
  * Dispatched over the whole list (no read-back of the count): slots past fb_counter return.
+ * Budget: at most fb_budget rays in all (the uniform probes' count). A longer list (thousands of
+ * pixels on many small objects: no probe lies on a sphere 4 pixels wide) traces m = 8, 4, 2 or 1
+ * rays per pixel, the strata phase, phase + 16 / m, ... of the 16 in frame phase of each cycle of
+ * 16 / m frames (the rotation held for the cycle): the temporal mix of one cycle averages exactly
+ * the 16 strata, so the frame's cost stays the screen's, not the scene's.
  * Inputs: gbuf_position, gbuf_normal, fb_list, fb_counter, the tracers (mesh and global SDF,
  * surface cache, sky, voxel lighting), the radiance cache's samplers; cam_pos, frame, t_max,
- * rc_camera; image out_image (read and written), rc_marks.
+ * rc_camera, fb_budget; image out_image (read and written), rc_marks.
  */
 #define FALLBACK_RAYS 16
 
@@ -22,9 +27,15 @@ void main()
 {
   ivec2 lsize = imageSize(fb_list);
   int slot = int(gl_GlobalInvocationID.x);
-  if (slot >= imageLoad(fb_counter, ivec2(0, 0)).x || slot >= lsize.x * lsize.y) {
+  int count = imageLoad(fb_counter, ivec2(0, 0)).x;
+  if (slot >= count || slot >= lsize.x * lsize.y) {
     return;
   }
+  int m = FALLBACK_RAYS;
+  while (m > 1 && count * m > fb_budget) {
+    m >>= 1;
+  }
+  int period = FALLBACK_RAYS / m;
   vec4 entry = imageLoad(fb_list, ivec2(slot % lsize.x, slot / lsize.x));
   ivec2 px = ivec2(entry.xy);
   float voxel = entry.z;
@@ -32,13 +43,14 @@ void main()
   if (!gbuf_surface(px, cam_pos, p, n)) {
     return;
   }
-  uint seed = pcg_hash(uint(px.x) + 7919u * uint(px.y)) ^ pcg_hash(uint(frame) + 0x2545f491u);
+  uint seed = pcg_hash(uint(px.x) + 7919u * uint(px.y))
+              ^ pcg_hash(uint(frame / period) + 0x2545f491u);
   vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
   vec3 o = p + n * max(voxel, 1e-3);
   vec3 sum = vec3(0.0);
   int k = rc_level(o);
   bool mark = false;
-  for (int i = 0; i < FALLBACK_RAYS; i++) {
+  for (int i = frame % period; i < FALLBACK_RAYS; i += period) {
     vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(FALLBACK_RAYS)) + rot), n);
     float t;
     int status;
@@ -49,5 +61,5 @@ void main()
     rc_mark(o, k, frame);     /* probes for this pixel's next frames */
   }
   vec3 near = imageLoad(out_image, px).rgb;
-  imageStore(out_image, px, vec4(3.14159265358979 * sum / float(FALLBACK_RAYS) + near, 0.0));
+  imageStore(out_image, px, vec4(3.14159265358979 * sum / float(m) + near, 0.0));
 }

@@ -7,6 +7,9 @@ probe), F12 of 2 frames, with and without the world radiance cache. After each g
 reads the list back and runs the old inline gather (the integrate pass's former fallback branch,
 below as a test shader) over every pixel: at every listed pixel the frame's E equals it exactly,
 each listed pixel is flagged w = 0 and listed once, and there are enough of them to mean something.
+The budget (a list longer than the uniform probes' rays allow traces m < 16 rays a pixel, strata
+rotating over 16 / m frames): the pass with a budget of 4 rays a pixel, run over the 4 frames of
+one cycle, averages exactly the inline pass's 16 rays of that cycle's rotation (sums to 1e-5).
 """
 import sys
 from pathlib import Path
@@ -59,7 +62,8 @@ import dataclasses
 import mathutils
 from lumen_gi.gpu_shaders import engine, gi_settings, compute, radiance_cache, screen_probes
 
-INLINE = compute.Pass("test_inline_fallback", source=%r,
+SRC = %r
+INLINE = compute.Pass("test_inline_fallback", source=SRC,
                       samplers=screen_probes.GBUF + radiance_cache.SAMPLERS,
                       push=(('VEC3', 'cam_pos'), ('INT', 'frame'), ('FLOAT', 't_max'),
                             radiance_cache.CAMERA))
@@ -70,6 +74,12 @@ void main()
   imageStore(out_image, ivec2(0, 0), vec4(float(imageLoad(fb_counter, ivec2(0, 0)).x)));
 }
 ''', images=("out_image", ("fb_counter", 'R32I', {'READ'})))
+INLINE_BARE = compute.Pass("test_inline_fallback_bare",
+                           source=SRC.replace("+ near, 0.0)", ", 0.0)"),
+                           samplers=screen_probes.GBUF + radiance_cache.SAMPLERS,
+                           push=(('VEC3', 'cam_pos'), ('INT', 'frame'), ('FLOAT', 't_max'),
+                                 radiance_cache.CAMERA))
+screen_probes.FALLBACK_BUDGET = 1e6      # 16 rays for every listed pixel
 CFG = {}
 ROWS = []
 _settings = gi_settings.from_scene
@@ -94,10 +104,30 @@ def _wrapped(self, res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels=No
                out_image=ref, **lookup)
     R = compute.read(ref)
     xs, ys = lst[:, 0].astype(int), lst[:, 1].astype(int)
+    # the budget: 4 rays a pixel over the 4 frames of cycle `frame`, onto zero (no near light)
+    INLINE_BARE.run((self.width, self.height), scene=res, cache=cache, gsdf=gsdf, sky=sky,
+                    voxels=voxels, gbuf_position=g["position"], gbuf_normal=g["normal"],
+                    cam_pos=compute.vec(cam_pos), frame=int(frame), t_max=float(t_max),
+                    out_image=ref, **lookup)
+    R16 = compute.read(ref)[ys, xs, :3]
+    mean = np.zeros_like(R16)
+    for f in range(4 * int(frame), 4 * int(frame) + 4):
+        part = compute.texture((self.width, self.height))
+        screen_probes.FALLBACK.run(self.textures["fb_list"].width * self.textures["fb_list"].height,
+                                   scene=res, cache=cache, gsdf=gsdf, sky=sky, voxels=voxels,
+                                   frame=f, t_max=float(t_max), fb_budget=4 * count,
+                                   gbuf_position=g["position"], gbuf_normal=g["normal"],
+                                   cam_pos=compute.vec(cam_pos), out_image=part,
+                                   fb_list=self.textures["fb_list"],
+                                   fb_counter=self.textures["fb_counter"],
+                                   **radiance_cache.lookup_inputs(rcache, cam_pos))
+        mean += compute.read(part)[ys, xs, :3] / 4.0
+    budget_diff = float(np.abs(mean - R16).max() / max(R16.max(), 1e-9)) if count else -1.0
     ROWS.append(dict(count=count, unique=len(set(zip(xs.tolist(), ys.tolist()))),
                      w_zero=bool((E[ys, xs, 3] == 0).all()),
                      max_diff=float(np.abs(E[ys, xs, :3] - R[ys, xs, :3]).max()) if count else -1.0,
-                     max_E=float(E[ys, xs, :3].max()) if count else 0.0))
+                     max_E=float(E[ys, xs, :3].max()) if count else 0.0,
+                     budget_diff=budget_diff))
     return out
 
 screen_probes.ScreenProbes.gather = _wrapped
@@ -150,3 +180,4 @@ def test_fallback_list_traces_exactly_the_inline_rays(tmp_path):
             assert r["w_zero"]
             assert r["max_E"] > 0.0                      # the rays reached the lit scene
             assert r["max_diff"] == 0.0                  # the same rays, seeds and sums
+            assert 0.0 <= r["budget_diff"] < 1e-5        # a cycle of 4 frames: the 16 strata
