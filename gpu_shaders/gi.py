@@ -80,6 +80,19 @@ def _probes(state, gi: GISettings, width: int, height: int):
     return p
 
 
+def sc_ray_lod(view_proj, cam_pos, height: int, rays_per_pixel: float):
+    """The surface cache's ray LOD (SurfaceCache.light_indirect's `lod`): (camera position,
+    pixels per metre at 1 m = |P[1][1]| H / 2, read from the view-projection's row 1 whose
+    view part is a unit vector, rays per pixel); None without a perspective camera (an
+    orthographic one's w row is (0, 0, 0, 1): no distance makes a texel smaller)."""
+    if view_proj is None or rays_per_pixel <= 0.0:
+        return None
+    m = np.asarray(view_proj, np.float64)
+    if np.linalg.norm(m[3, :3]) < 1e-9:
+        return None
+    return (cam_pos, float(np.linalg.norm(m[1, :3]) * height / 2.0), float(rays_per_pixel))
+
+
 def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_max: float,
                    width: int, height: int, changes: set, final: bool, view_proj=None,
                    gather=None, direct=None) -> dict:
@@ -153,6 +166,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                               and rcache is None and not gi.probe_importance) else 1
     split_frame = probes.frames if probes.history is not None else 0
     result, relit, gathered, last = None, 0, 0, None
+    lod = sc_ray_lod(view_proj, cam_pos, height, gi.sc_lod_rays)
     relight = final or scene_changed         # the voxel lighting holds light from before a reset
     totals = [0.0]           # F12: the cache's total indirect light after each warm-up
     noise = None                 # F12: the gathered frames' noise (two read-backs here)
@@ -183,7 +197,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                                          objects=res.packed.objects)
             else:
                 frame_tiles = tiles                  # one iteration per viewport frame
-            relit += cache.light_indirect(res, gsdf, sky, frame, t_max, frame_tiles, voxels)
+            relit += cache.light_indirect(res, gsdf, sky, frame, t_max, frame_tiles, voxels,
+                                          lod=lod)
             cache.combine(res)
         c = time.perf_counter()
         if voxels is not None:       # this combine's light, for the probes and the next rays

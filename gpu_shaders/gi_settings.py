@@ -77,6 +77,8 @@ class GISettings:
     render_sc_fraction: float = 0.2    # F12: least share of the tiles the view does not read
                                        # (surface_cache_pages.seen) relit per iteration, by
                                        # priority (render_sc_share; UE: 0.125); 1: every tile
+    sc_lod_rays: float = 1.0       # surface-cache ray LOD: a probe traces 16, 8 or 4 rays,
+                                   # at least this many per pixel its 4x4 texels cover (0: 16)
     radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache
     # screen-probe rays importance-sampled (BRDF x last radiance). Off by default: on, quality.py
     # 128 px relMSE glow 0.0801 -> 0.0861 (gpu_shaders/README: Screen probes)

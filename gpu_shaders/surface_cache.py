@@ -45,7 +45,9 @@ def _pass(name, samplers=(), push=(), images=("out_image",)):
 
 DIRECT = _pass("surface_cache_direct", ("lights", "sc_pages"),
                (('INT', 'light_count'), ('INT', 'light_samples')))
-PROBE_TRACE = _pass("surface_cache_probe_trace", PAGES, (('INT', 'frame'), ('FLOAT', 't_max')),
+PROBE_TRACE = _pass("surface_cache_probe_trace", PAGES,
+                    (('INT', 'frame'), ('FLOAT', 't_max'), ('VEC3', 'cam_pos'),
+                     ('FLOAT', 'lod_focal'), ('FLOAT', 'lod_rays')),
                     ("out_image", "probe_out", "probe_pos_out"))
 PROBE_SH = _pass("surface_cache_probe_sh", ("sc_rays", "sc_probes", "sc_probe_pos") + PAGES,
                  images=("out_image", "irradiance_out"))
@@ -216,14 +218,16 @@ class SurfaceCache:
                           light_samples=int(light_samples), out_image=self.direct)
 
     def light_indirect(self, resources: SceneResources, gsdf, sky, frame: int, t_max: float,
-                       tiles, voxels=None) -> int:
+                       tiles, voxels=None, lod=None) -> int:
         """E_indirect = mix(last E_indirect, this frame's probes, blend) on `tiles` (plan(): the
         tile indices and a blend each), in three passes over those tiles only:
         surface_cache_probe_trace (16 rays per probe of 4x4 texels, surface cache at hits),
         surface_cache_probe_sh (3x3 probe filter, two-band SH), surface_cache_indirect (per
         texel: 2x2 probes' SH irradiance at the texel's normal, temporal blend, in place).
         voxels: voxel_lighting.VoxelLighting, read at the rays' global-SDF hits (None: those are
-        refined on the mesh SDFs). Returns the number of tiles relit."""
+        refined on the mesh SDFs). lod: (camera position, pixels per metre at 1 m, rays per
+        pixel) for the trace's ray LOD (a probe far from the camera traces fewer rays; None: all
+        16). Returns the number of tiles relit."""
         idx = tiles[0]
         if not len(idx):
             return 0
@@ -234,7 +238,11 @@ class SurfaceCache:
                       sc_tile_frame=self.tile_frame)
         PROBE_TRACE.run_groups((k * TILE // GROUP, TILE // GROUP), **common,   # one per ray
                                gsdf=gsdf, sky=sky, voxels=voxels, frame=int(frame),
-                               t_max=float(t_max), out_image=t["rays"], probe_out=t["probes"],
+                               t_max=float(t_max),
+                               cam_pos=compute.vec(lod[0] if lod else (0.0, 0.0, 0.0)),
+                               lod_focal=float(lod[1]) if lod else 0.0,
+                               lod_rays=float(lod[2]) if lod else 0.0,
+                               out_image=t["rays"], probe_out=t["probes"],
                                probe_pos_out=t["positions"])
         PROBE_SH.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
                             sc_rays=t["rays"], sc_probes=t["probes"],   # one per probe

@@ -69,12 +69,16 @@ bool scp_texel(ivec2 probe, int frame, out ivec2 texel, out int row)
   return false;
 }
 
-/* Ray k of a probe with normal n: uniform over the hemisphere, stratified. */
+/* Ray k of a probe with normal n: uniform over the hemisphere, stratified. Slot k = x + 4 y of
+ * the 4x4 ray block takes Hammersley point 4 x + y, so each row y of the block (what a probe
+ * far from the camera traces alone, scp_ray_stride) holds points spread over the whole
+ * hemisphere (cos theta in four bands), not one band of it. */
 vec3 scp_dir(ivec2 probe, int frame, int k, vec3 n)
 {
   uint s = scp_seed(probe, frame) * 747796405u + 1u;
   vec2 rot = vec2(float(s & 0xffffu), float(s >> 16u)) / 65536.0;
-  vec2 u = fract(hammersley(uint(k), uint(SCP_RAYS)) + rot);
+  int j = (k & 3) * 4 + (k >> 2);
+  vec2 u = fract(hammersley(uint(j), uint(SCP_RAYS)) + rot);
   float z = u.x;
   float r = sqrt(max(0.0, 1.0 - z * z));
   float phi = 6.28318530717958648 * u.y;

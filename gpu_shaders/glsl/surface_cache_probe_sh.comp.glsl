@@ -6,10 +6,11 @@
  * between probes, convert to TwoBandSH"). Per probe, the rays of the 3x3 neighbouring probes on
  * the same card whose normals agree (cos > 0.9) and that no wall hides (gi_visible: the two sides of
  * a thin wall on one floor card must not mix) are projected together:
- *   c_k = sum_rays L Y_k(dir) (2 pi / 16) / (probes used)
- * (uniform hemisphere rays: each ray stands for 2 pi / 16 sr; the other hemisphere is empty).
+ *   c_k = sum_rays L Y_k(dir) 2 pi / (rays used)
+ * (uniform hemisphere rays: each ray stands for 2 pi / 16 sr of its probe; the other hemisphere
+ * is empty; a slot the trace's ray LOD skipped, a = 0, is no ray).
  * Also the irradiance at the probe's own normal from the same rays, E0 = sum L max(0, n.dir)
- * (2 pi / 16) / (probes used): exact where two-band SH is not (a small bright source near the
+ * 2 pi / (rays used): exact where two-band SH is not (a small bright source near the
  * normal reads 25% low through SH4's clamped-cosine convolution); the texels use E0 and take from
  * the SH only how their normal differs from the probe's.
  * Runs over this frame's tiles (sc_pages); a neighbour in another tile keeps the rays of that
@@ -30,7 +31,7 @@ void main()
   vec3 c[4] = vec3[4](vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
   vec3 e0 = vec3(0.0);
   if (own.w > 0.5) {
-    float used = 0.0;
+    float rays = 0.0;
     vec4 a = texelFetch(sc_probe_pos, probe, 0);
     vec3 lifted = gi_lifted(a.xyz, own.xyz, a.w);
     float h;
@@ -54,7 +55,12 @@ void main()
         }
         int q_frame = scp_probe_frame(q);
         for (int k = 0; k < SCP_RAYS; k++) {
-          vec3 L = texelFetch(sc_rays, q * SCP_SIZE + ivec2(k & 3, k >> 2), 0).rgb;
+          vec4 ray = texelFetch(sc_rays, q * SCP_SIZE + ivec2(k & 3, k >> 2), 0);
+          if (ray.a <= 0.0) {
+            continue;                  /* a slot the ray LOD skipped (a = 0) */
+          }
+          vec3 L = ray.rgb;
+          rays += 1.0;
           float b[4];
           vec3 dir = scp_dir(q, q_frame, k, qi.xyz);
           sh4_basis(dir, b);
@@ -63,10 +69,9 @@ void main()
             c[i] += L * b[i];
           }
         }
-        used += 1.0;
       }
     }
-    float w = 6.28318530717958648 / (float(SCP_RAYS) * used);
+    float w = 6.28318530717958648 / max(rays, 1.0);
     for (int i = 0; i < 4; i++) {
       c[i] *= w;
     }

@@ -101,3 +101,48 @@ def test_white_furnace_sphere(tmp_path):
     np.testing.assert_allclose(lum[~hit], 1.0, atol=1e-6)          # the sky itself
     assert abs(lum[hit].mean() - 0.8) <= 0.02 * 0.8
     assert (np.abs(lum[hit] - 0.8) <= 0.05 * 0.8).mean() >= 0.95
+
+
+ROOM_LOD = COMMON + """
+import dataclasses
+from lumen_gi.gpu_shaders import compute, gi_settings, surface_cache
+_settings = gi_settings.from_scene
+# the coarsest ray LOD everywhere: every radiosity probe traces one row (4) of its 16 rays
+gi_settings.from_scene = lambda s, viewport=False: dataclasses.replace(_settings(s, viewport),
+                                                                       sc_lod_rays=1e-6)
+TRACED = []
+_light = surface_cache.SurfaceCache.light_indirect
+
+def light_indirect(self, *args, **kw):
+    k = _light(self, *args, **kw)
+    rays = compute.read(self.probe_textures["rays"])[..., 3]
+    probes = compute.read(self.probe_textures["probes"])[..., 3] > 0.5
+    h, w = probes.shape
+    slots = rays[:h * 4, :w * 4].reshape(h, 4, w, 4).transpose(0, 2, 1, 3)[probes]
+    TRACED.append(float((slots > 0.0).mean()))
+    return k
+
+surface_cache.SurfaceCache.light_indirect = light_indirect
+scene = empty_scene(voxel_density=10.0, cache_dir="cache")
+mat = principled("Wall", (0.5, 0.5, 0.5), emission=(1.0, 1.0, 1.0), strength=0.5)
+closed_room(mat)
+world((0.0, 0.0, 0.0))
+camera((-1.2, -0.9, -0.3), (1.0, 0.6, 0.1))
+R = finish(48)
+emit(traced=TRACED)
+"""
+
+
+def test_ray_lod_keeps_the_closed_room_series(tmp_path):
+    """The surface cache's ray LOD (gi.sc_ray_lod) forced to its coarsest: each radiosity probe
+    traces one row of 4 of its 16 rays, and the SH pass divides by the rays it used, so the
+    closed room still converges to Le / (1 - rho) (a divisor of 16 would leave it 4x short)."""
+    run = run_python(ROOM_LOD, tmp_path, timeout=300)
+    assert run.returncode == 0, run.explain()
+    traced = run.result["traced"]
+    assert traced and all(t == 0.25 for t in traced), traced
+    lum = np.load(tmp_path / "combined.npy")[..., :3].mean(axis=-1)
+    expected = 0.5 / (1.0 - 0.5) * (1.0 - 0.5 ** 10)
+    print(lum.mean(), np.percentile(lum, [1, 5, 50, 95, 99]))
+    assert abs(lum.mean() - expected) <= 0.03 * expected
+    assert (np.abs(lum - expected) <= 0.1 * expected).mean() >= 0.9
