@@ -8,7 +8,8 @@
     surface cache        direct light per card texel, then per iteration: indirect rays reading
                          last iteration's final light (one more bounce each time), combine;
                          the viewport relights a budget of tiles per frame by priority
-                         (surface_cache_pages.py), F12 every tile the view reads
+                         (surface_cache_pages.py; still: the tiles the view reads first,
+                         and only they are waited for), F12 every tile the view reads
                          (PageSchedule.seen) and GISettings.render_sc_share() of the
                          others per iteration, by each tile's own visibility, distance
                          and age (never-lit tiles first)
@@ -40,6 +41,7 @@ import numpy as np
 from . import compute
 from .frame_noise import FrameNoise
 from .gi_settings import MAX_BOUNCES, MIN_RENDER_FRAMES, GISettings, bounces_converged
+from .surface_cache_pages import tile_area, tile_geometry
 
 
 def _global_sdf(state, gi: GISettings):
@@ -78,6 +80,17 @@ def _probes(state, gi: GISettings, width: int, height: int):
     if p is None or (p.width, p.height, p.tile, p.res) != (width, height, tile, res):
         p = state.probes = ScreenProbes(width, height, tile, res)
     return p
+
+
+def _seen_tiles(cache, res, cam_pos, view_proj):
+    """PageSchedule.seen for this camera (the tiles' world geometry first, once per surface
+    cache and after objects moved): bool per tile, the tiles the image reads."""
+    pages = cache.pages
+    if pages.geometry is None:
+        tc, cards, objects = cache.packed.texel_card, cache.packed.cards, res.packed.objects
+        pages.set_geometry(tile_geometry(pages, tc, cards, objects),
+                           tile_area(pages, tc, cards, objects))
+    return pages.seen(cam_pos, view_proj)
 
 
 def sc_ray_lod(view_proj, cam_pos, height: int, rays_per_pixel: float):
@@ -131,8 +144,15 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         tiles = None
     else:          # viewport: a budget of tiles by priority, the same for direct and radiosity
         frame0 = state.gi_frame
+        if objects_changed:
+            cache.pages.set_geometry(None)
+        # still for two redraws: which tiles the image reads (F12's `seen`, once per camera),
+        # updated first and the only ones "refining n/N" waits for
+        seen = (_seen_tiles(cache, res, cam_pos, view_proj)
+                if probes.history is not None and probes.frames >= 2 and view_proj is not None
+                else None)
         where = dict(instance_spheres=res.packed.objects[:, 8], view_proj=view_proj,
-                     cam_pos=cam_pos)
+                     cam_pos=cam_pos, seen=seen)
         tiles = cache.plan(frame0, blend=gi.cache_blend, budget=gi.sc_tiles, history=gi.history,
                            where=where)
     cache.light_direct(res, state.light_texture, len(state.lights), tiles=tiles)
@@ -270,11 +290,11 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     else:          # the viewport: frames in the probe history and the least-updated tile's count
         h = max(int(gi.history), 1)
         n = h * split                    # redraws: each pixel's `history` turns, one per split
-        progress = (min(probes.frames, int(cache.pages.count.min(initial=h)) * split, n), n)
+        progress = (min(probes.frames, min(cache.pages.least_count(seen), h) * split, n), n)
     return {"texture": result, "timings": timings, "iterations": len(schedule),
             "bounces": 1 + warm if final else None,
             "frame_noise": noise_log,
             "progress": progress,
             "sc_tiles": relit, "sc_tiles_total": len(cache.pages),
             "converged": final or (probes.frames >= gi.history * split
-                                   and cache.pages.converged(gi.history))}
+                                   and cache.pages.converged(gi.history, seen))}

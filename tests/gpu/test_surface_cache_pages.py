@@ -181,3 +181,88 @@ def test_seen_tiles_and_the_render_share():
     cam2 = (0.0, -10.0, 10.0)                          # sees the far ground and its wall's face
     assert list(s2.facing(cam2)) == [True, True, True, False, True]
     assert list(s2.seen(cam2)) == [True, True, True, False, True]
+
+
+def test_the_still_viewport_waits_only_for_the_tiles_the_image_reads():
+    """With `seen` known, the budget goes round the seen tiles (SEEN_WEIGHT, no frustum or
+    distance weights: equally often), and converged / least_count count only them once every
+    tile is lit: 4 seen of 11 tiles, budget 2, history 3 -> converged within 6 frames after
+    the first full pass, while the unseen tiles stay behind."""
+    s = PageSchedule(*atlas())
+    seen = np.zeros(len(s), bool)
+    seen[[0, 3, 5, 9]] = True
+    assert s.least_count(seen) == 0                  # unlit tiles: nothing counts yet
+    idx, _ = s.choose(0, frame=0)
+    s.commit(idx, 0)                                 # every tile lit once
+    assert s.least_count(seen) == 1 and s.least_count() == 1
+    spheres = np.array([[0, 0, 0, 1], [0, 0, 0, 1], [100, 0, 0, 1], [0, 0, 50, 1]], float)
+    view_proj = np.diag([0.1, 0.1, -0.1, 1.0])
+    for frame in range(1, 7):
+        idx, _ = s.choose(2, frame, history=3, instance_spheres=spheres, view_proj=view_proj,
+                          cam_pos=(0, 0, 0), seen=seen)
+        assert seen[idx].all(), (frame, idx)         # only the tiles the image reads
+        s.commit(idx, frame)
+    assert s.least_count(seen) == 4                  # 12 updates round the 4: 3 more each
+    assert s.converged(3, seen) and not s.converged(3)
+    assert s.least_count() == 1
+
+
+def texel_geometry(schedule, texel_card, cards, objects):
+    """Brute force for tile_geometry: every texel's world point and normal, then per tile."""
+    from gpu_shaders.card_packing import AXES, PLANE
+    ys, xs = np.nonzero(texel_card >= 0)
+    row = np.rint(texel_card[ys, xs]).astype(np.int64)
+    c = np.asarray(cards, np.float64)[row]
+    inst, axis = c[:, 0, 0].astype(np.int64), c[:, 0, 1].astype(np.int64)
+    u = c[:, 2, 0] + (xs - c[:, 0, 2] + 0.5) / c[:, 1, 2] * (c[:, 2, 2] - c[:, 2, 0])
+    v = c[:, 2, 1] + (ys - c[:, 0, 3] + 0.5) / c[:, 1, 3] * (c[:, 2, 3] - c[:, 2, 1])
+    look = AXES[axis]
+    p = look * (0.5 * (c[:, 3, 0] + c[:, 3, 1]))[:, None]
+    plane = np.array([PLANE[a] for a in range(6)])
+    p[np.arange(len(row)), plane[axis, 0]] = u
+    p[np.arange(len(row)), plane[axis, 1]] = v
+    w2l = np.array(objects, np.float64)[:, 0:4, :]
+    w2l[:, 3] = (0.0, 0.0, 0.0, 1.0)
+    l2w = np.linalg.inv(w2l)
+    pw = np.einsum("nij,nj->ni", l2w[inst, :3, :3], p) + l2w[inst, :3, 3]
+    nw = np.einsum("nji,nj->ni", w2l[inst, :3, :3], -look)
+    nw /= np.linalg.norm(nw, axis=1, keepdims=True)
+    tw = schedule.grid[0]
+    tile = np.searchsorted(schedule.tiles[:, 1] * tw + schedule.tiles[:, 0], (ys // TILE) * tw + xs // TILE)
+    centre, radius, normal = [], [], []
+    for t in range(len(schedule.tiles)):
+        m = tile == t
+        lo, hi = pw[m].min(0), pw[m].max(0)
+        centre.append(0.5 * (lo + hi))
+        radius.append(0.5 * np.linalg.norm(hi - lo) + (0.5 * (c[m, 3, 1] - c[m, 3, 0])).max())
+        normal.append(nw[m].mean(0))
+    return np.array(centre), np.array(radius), np.array(normal)
+
+
+def test_tile_geometry_equals_the_texel_brute_force():
+    """Cards of random sizes across tile borders, on instances moved, turned and scaled:
+    tile_geometry (per tile and card row, from corner texels) equals a loop over every texel."""
+    rng = np.random.default_rng(7)
+    tc = np.full((100, 130), -1.0)
+    rows, n_inst = [], 5
+    for gy in range(5):
+        for gx in range(6):
+            w, h = rng.integers(1, 21, 2)
+            lx, ly = gx * 21 + rng.integers(0, 21 - w + 1), gy * 20 + rng.integers(0, 20 - h + 1)
+            lo = rng.uniform(-1, 0, 2)
+            rows.append([(rng.integers(n_inst), rng.integers(6), lx, ly), (0, 0, w, h),
+                         (*lo, *(lo + rng.uniform(0.1, 2, 2))), (rng.uniform(-1, 0), rng.uniform(0, 1), 0, 0)])
+            tc[ly:ly + h, lx:lx + w] = len(rows) - 1
+    cards = np.array(rows, np.float64)
+    objects = np.zeros((n_inst, 9, 4))
+    for i in range(n_inst):
+        q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+        l2w = np.eye(4)
+        l2w[:3, :3] = q * rng.uniform(0.5, 2.0, 3)
+        l2w[:3, 3] = rng.uniform(-5, 5, 3)
+        objects[i, 0:4] = np.linalg.inv(l2w)
+    s = PageSchedule(tc, cards[:, 0, 0])
+    got = tile_geometry(s, tc, cards, objects)
+    want = texel_geometry(s, tc, cards, objects)
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(g, w, rtol=1e-9, atol=1e-9)
