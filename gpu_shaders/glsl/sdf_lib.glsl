@@ -227,7 +227,9 @@ vec2 sdf_scene_box_span(vec3 o, vec3 dir, float margin, out float exit_cosine)
   vec4 g0 = sdf_grid_texel(0);
   vec3 lo = g0.xyz - margin;
   vec3 hi = g0.xyz + floor(sdf_grid_texel(1).xyz + 0.5) * g0.w + margin;
-  vec3 inv = 1.0 / dir;       /* +-inf on an axis-parallel ray: the slabs still order right */
+  /* a zero component as 1e-30: a huge finite slope orders the slabs as +-inf would, and a ray
+   * starting on a face plane gives 0 there, not 0 * inf = NaN */
+  vec3 inv = 1.0 / mix(dir, vec3(1e-30), equal(dir, vec3(0.0)));
   vec3 a = (lo - o) * inv;
   vec3 b = (hi - o) * inv;
   vec3 near = min(a, b);

@@ -7,7 +7,9 @@ evaluates sdf_scene (the grid) and sdf_scene_all (every object) and counts the i
 visits. Wherever the full loop's value is below the margin M the two agree exactly (value,
 nearest object, its voxel); everywhere min(full, M) <= grid <= full (a lower bound, safe for
 sphere tracing). The grid tests a few instances per sample, the full loop all of them. The same
-holds with a per-cell cap of 3, where the crowded cells fall back to the full loop.
+holds with a per-cell cap of 3, where the crowded cells fall back to the full loop. And
+sdf_scene_box_span of a ray along z from the scene box's low x face, with -0.0 in x (0 * inf in
+the slab test): finite, leaving through the top where it starts inside.
 """
 import sys
 from pathlib import Path
@@ -55,7 +57,16 @@ void main()
   float df = sdf_scene_all(p, hf, nf);
   imageStore(out_image, ivec2(i, 0), vec4(dg, df, float(tg), float(vg)));
   imageStore(out_more, ivec2(i, 0), vec4(hg, hf, float(ng), float(nf)));
-  imageStore(out_full, ivec2(i, 0), vec4(float(sdf_tests), float(sdf_visits), 0.0, 0.0));
+  /* the scene's box span of an axis-parallel ray from the box's low x face (0 * inf there) */
+  vec4 g0 = sdf_grid_texel(0);
+  vec3 lo = g0.xyz - 0.5;
+  vec3 hi = g0.xyz + floor(sdf_grid_texel(1).xyz + 0.5) * g0.w + 0.5;
+  vec3 o = vec3(lo.x, p.y, p.z);
+  vec2 span = sdf_scene_box_span(o, vec3(-0.0, 0.0, 1.0), 0.5);
+  bool in_yz = all(greaterThan(o.yz, lo.yz)) && all(lessThan(o.yz, hi.yz));
+  imageStore(out_full, ivec2(i, 0), vec4(float(sdf_tests), float(sdf_visits),
+                                         in_yz ? span.x : -1.0,
+                                         in_yz ? span.y - (hi.z - o.z) : 0.0));
 }}
 '''
 
@@ -137,6 +148,13 @@ def test_grid_scene_distance_equals_the_full_loop_below_the_margin(tmp_path):
         dg, df, tg, vg = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
         hg, hf, ng, nf = a[:, 4], a[:, 5], a[:, 6], a[:, 7]
         tf = a[:, 8]
+        # sdf_scene_box_span on the box's face along an axis, from inside it in y and z:
+        # enters at 0, leaves through the top, hi.z - o.z (-1: a start outside in y or z)
+        span_in, exit_err = a[:, 10], a[:, 11]
+        inside = span_in != -1.0
+        assert inside.sum() > 100, inside.sum()
+        assert (span_in[inside] == 0.0).all(), span_in[inside]
+        assert np.abs(exit_err[inside]).max() < 1e-4
         m = info["margin"]
         below = df < m
         assert below.sum() >= 1000, below.sum()                 # near surfaces, inside solids
