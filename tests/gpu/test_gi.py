@@ -57,13 +57,16 @@ def world(colour):
     w.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
 """
 
-ROOM = COMMON + """
+ROOM_SCENE = """
 scene = empty_scene(voxel_density=10.0, cache_dir="cache")
 mat = principled("Wall", (0.5, 0.5, 0.5), emission=(1.0, 1.0, 1.0), strength=0.5)
 closed_room(mat)
 world((0.0, 0.0, 0.0))
 camera((-1.2, -0.9, -0.3), (1.0, 0.6, 0.1))
 R = finish(48)
+"""
+
+ROOM = COMMON + ROOM_SCENE + """
 emit(gi=R["gi_timings"], iterations=R["gi_iterations"])
 """
 
@@ -123,12 +126,7 @@ def light_indirect(self, *args, **kw):
     return k
 
 surface_cache.SurfaceCache.light_indirect = light_indirect
-scene = empty_scene(voxel_density=10.0, cache_dir="cache")
-mat = principled("Wall", (0.5, 0.5, 0.5), emission=(1.0, 1.0, 1.0), strength=0.5)
-closed_room(mat)
-world((0.0, 0.0, 0.0))
-camera((-1.2, -0.9, -0.3), (1.0, 0.6, 0.1))
-R = finish(48)
+""" + ROOM_SCENE + """
 emit(traced=TRACED)
 """
 
