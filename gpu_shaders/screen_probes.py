@@ -96,7 +96,7 @@ FALLBACK = compute.Pass("screen_probe_fallback",
                                 ("fb_list", 'RGBA32F', {'READ'}), ("fb_counter", 'R32I', {'READ'}),
                                 ("rc_marks", 'R32F')),
                         push=(('VEC3', 'cam_pos'), ('INT', 'frame'), ('FLOAT', 't_max'),
-                              radiance_cache.CAMERA, ('INT', 'fb_budget')),
+                              radiance_cache.CAMERA, ('INT', 'fb_budget'), ('INT', 'fb_turn')),
                         group=(FALLBACK_GROUP, 1, 1))
 TEMPORAL = compute.Pass("screen_probe_temporal", samplers=("indirect_new", "indirect_history"),
                         push=(('FLOAT', 'blend'),))
@@ -262,6 +262,7 @@ class ScreenProbes:
         # among many small objects cost 4x a whole viewport frame at 16 rays each)
         FALLBACK.run(lw * lh, **tracers, frame=int(frame), t_max=float(t_max),
                      fb_budget=int(FALLBACK_BUDGET * gw * gh * r * r) // (step * step),
+                     fb_turn=int(frame) // split,        # a pixel's turns (the split's)
                      gbuf_position=gpos, gbuf_normal=gnor, cam_pos=cam,
                      out_image=tex["integrated"], fb_list=tex["fb_list"],
                      fb_counter=tex["fb_counter"],

@@ -14,12 +14,13 @@
  * Dispatched over the whole list (no read-back of the count): slots past fb_counter return.
  * Budget: at most fb_budget rays in all (the uniform probes' count). A longer list (thousands of
  * pixels on many small objects: no probe lies on a sphere 4 pixels wide) traces m = 8, 4, 2 or 1
- * rays per pixel, the strata phase, phase + 16 / m, ... of the 16 in frame phase of each cycle of
- * 16 / m frames (the rotation held for the cycle): the temporal mix of one cycle averages exactly
- * the 16 strata, so the frame's cost stays the screen's, not the scene's.
+ * rays per pixel, the strata phase, phase + 16 / m, ... of the 16 on turn phase of each cycle of
+ * 16 / m of the pixel's turns (fb_turn: the frame / the viewport's split, whose pixels are
+ * integrated one redraw in `split`; the rotation held for the cycle): the temporal mix of one
+ * cycle averages exactly the 16 strata, so the frame's cost stays the screen's, not the scene's.
  * Inputs: gbuf_position, gbuf_normal, fb_list, fb_counter, the tracers (mesh and global SDF,
  * surface cache, sky, voxel lighting), the radiance cache's samplers; cam_pos, frame, t_max,
- * rc_camera, fb_budget; image out_image (read and written), rc_marks.
+ * rc_camera, fb_budget, fb_turn; image out_image (read and written), rc_marks.
  */
 #define FALLBACK_RAYS 16
 
@@ -44,13 +45,13 @@ void main()
     return;
   }
   uint seed = pcg_hash(uint(px.x) + 7919u * uint(px.y))
-              ^ pcg_hash(uint(frame / period) + 0x2545f491u);
+              ^ pcg_hash(uint(fb_turn / period) + 0x2545f491u);
   vec2 rot = vec2(float(seed & 0xffffu), float(seed >> 16u)) / 65536.0;
   vec3 o = p + n * max(voxel, 1e-3);
   vec3 sum = vec3(0.0);
   int k = rc_level(o);
   bool mark = false;
-  for (int i = frame % period; i < FALLBACK_RAYS; i += period) {
+  for (int i = fb_turn % period; i < FALLBACK_RAYS; i += period) {
     vec3 dir = cosine_hemisphere(fract(hammersley(uint(i), uint(FALLBACK_RAYS)) + rot), n);
     float t;
     int status;

@@ -71,7 +71,8 @@ bool scp_texel(ivec2 probe, int frame, out ivec2 texel, out int row)
 
 /* Ray k of a probe with normal n: uniform over the hemisphere, stratified. Slot k = x + 4 y of
  * the 4x4 ray block takes Hammersley point 4 x + y, so each row y of the block (what a probe
- * far from the camera traces alone, scp_ray_stride) holds points spread over the whole
+ * far from the camera traces alone: surface_cache_probe_trace's ray LOD) holds points spread
+ * over the whole
  * hemisphere (cos theta in four bands), not one band of it. */
 vec3 scp_dir(ivec2 probe, int frame, int k, vec3 n)
 {

@@ -116,6 +116,7 @@ def _wrapped(self, res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels=No
         screen_probes.FALLBACK.run(self.textures["fb_list"].width * self.textures["fb_list"].height,
                                    scene=res, cache=cache, gsdf=gsdf, sky=sky, voxels=voxels,
                                    frame=f, t_max=float(t_max), fb_budget=4 * count,
+                                   fb_turn=f,
                                    gbuf_position=g["position"], gbuf_normal=g["normal"],
                                    cam_pos=compute.vec(cam_pos), out_image=part,
                                    fb_list=self.textures["fb_list"],
