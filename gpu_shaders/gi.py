@@ -12,7 +12,8 @@
                          and only they are waited for), F12 every tile the view reads
                          (PageSchedule.seen) and GISettings.render_sc_share() of the
                          others per iteration, by each tile's own visibility, distance
-                         and age (never-lit tiles first)
+                         and age (never-lit tiles first), at most render_sc_texels per
+                         image pixel once every tile is lit (the oldest seen first)
     screen probes        place, trace, filter, SH, integrate per pixel, temporal (screen_probes.py);
                          with GISettings.screen_trace their rays walk the HZB first
                          (screen_trace.py: HZB once per frame, the screen colour per iteration
@@ -40,8 +41,9 @@ import numpy as np
 
 from . import compute
 from .frame_noise import FrameNoise
-from .gi_settings import MAX_BOUNCES, MIN_RENDER_FRAMES, GISettings, bounces_converged
-from .surface_cache_pages import tile_area, tile_geometry
+from .gi_settings import (MAX_BOUNCES, MIN_RENDER_FRAMES, RENDER_SC_MIN_TILES, GISettings,
+                          bounces_converged)
+from .surface_cache_pages import TILE, tile_area, tile_geometry
 
 
 def _global_sdf(state, gi: GISettings):
@@ -169,6 +171,10 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     if final:
         schedule = list(gi.render_schedule())
         share = gi.render_sc_share()
+        # the image's budget of relit tiles per iteration (the first relights them all), never
+        # under RENDER_SC_MIN_TILES: a small image of a room keeps every wall every iteration
+        cap = (max(int(np.ceil(gi.render_sc_texels * width * height / TILE ** 2)),
+                   RENDER_SC_MIN_TILES) if gi.render_sc_texels > 0 else 0)
         warm = sum(1 for _, px in schedule if px is None)
         if gi.converge_bounces and warm < 2:      # two changes estimate the bounces left
             schedule[warm:warm] = [(gi.cache_blend, None)] * (2 - warm)
@@ -214,7 +220,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
             if final:    # a share of the tiles, never-lit, then visible, near and old first
                 frame_tiles = cache.plan(frame, blend=sc_blend, fraction=share,
                                          where=dict(view_proj=view_proj, cam_pos=cam_pos),
-                                         objects=res.packed.objects)
+                                         objects=res.packed.objects, cap=cap)
             else:
                 frame_tiles = tiles                  # one iteration per viewport frame
             relit += cache.light_indirect(res, gsdf, sky, frame, t_max, frame_tiles, voxels,

@@ -47,6 +47,7 @@ MIN_PROBES_ACROSS = 16             # screen probes across an image's shorter sid
 MIN_PROBE_RES = 8                  # octahedral texels per side a halved-tile probe keeps, at least
 MIN_RENDER_FRAMES = 4              # F12 frames averaged before the noise threshold may end it
 MAX_BOUNCES = 16                   # F12 bounces at most (the scene's Bounces setting's maximum)
+RENDER_SC_MIN_TILES = 256          # F12's tile cap (render_sc_texels) never goes below this
 VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split by default (1, 4 or 16;
                                    # the scene's viewport_split, Viewport > Spread over)
 
@@ -77,6 +78,8 @@ class GISettings:
     render_sc_fraction: float = 0.2    # F12: least share of the tiles the view does not read
                                        # (surface_cache_pages.seen) relit per iteration, by
                                        # priority (render_sc_share; UE: 0.125); 1: every tile
+    render_sc_texels: float = 16.0     # F12: at most this many lighting texels relit per image
+                                       # pixel per iteration once every tile is lit (0: no cap)
     sc_lod_rays: float = 1.0       # surface-cache ray LOD: a probe traces 16, 8 or 4 rays,
                                    # at least this many per pixel its 4x4 texels cover (0: 16)
     radiance_cache: bool = False   # screen-probe rays trace ~2 m, the far field from the cache

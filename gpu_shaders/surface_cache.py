@@ -173,7 +173,7 @@ class SurfaceCache:
 
     # --- passes --------------------------------------------------------------------------------
     def plan(self, frame: int, blend: float = 1.0, budget: int = 0, history: int = 1,
-             where=None, fraction: float = 1.0, objects=None) -> tuple:
+             where=None, fraction: float = 1.0, objects=None, cap: int = 0) -> tuple:
         """This frame's tiles and their blends, committed as relit at `frame`.
         budget <= 0 (F12): every tile, all with `blend`, or with fraction < 1 that fraction of
         them by PageSchedule.render_priority (`where`: view_proj, cam_pos; `objects`: the
@@ -181,15 +181,16 @@ class SurfaceCache:
         reset. budget > 0 (viewport): at most `budget`
         tiles by priority (surface_cache_pages.py; `where`: instance_spheres, view_proj,
         cam_pos), blends by each tile's update count (PageSchedule.choose: `blend` for the
-        bounces, then 1 / `history`)."""
+        bounces, then 1 / `history`). cap > 0 (F12): at most that many tiles once every tile
+        is lit (PageSchedule.choose_render)."""
         if budget > 0:
             idx, blends = self.pages.choose(budget, frame, blend, history, **(where or {}))
-        elif fraction < 1.0:
+        elif fraction < 1.0 or 0 < cap < len(self.pages):
             if self.pages.geometry is None and objects is not None:
                 tc, cards = self.packed.texel_card, self.packed.cards
                 self.pages.set_geometry(tile_geometry(self.pages, tc, cards, objects),
                                         tile_area(self.pages, tc, cards, objects))
-            idx = self.pages.choose_render(fraction, frame, **(where or {}))
+            idx = self.pages.choose_render(fraction, frame, cap=cap, **(where or {}))
             blends = np.full(len(idx), float(blend))
         else:
             idx, blends = self._all_tiles(blend)

@@ -125,20 +125,35 @@ class PageSchedule:
         score[never] = score.max(initial=0.0) + 1.0 + weight[never]
         return score
 
-    def choose_render(self, fraction: float, frame: int, **where) -> np.ndarray:
+    def choose_render(self, fraction: float, frame: int, cap: int = 0, **where) -> np.ndarray:
         """F12: tile indices of this iteration, every tile when `fraction` >= 1, else every
         never-lit tile (an unlit tile would read as black in the gather), every tile the view
         reads (`seen`; without tile areas: every tile facing the camera) and of the others the
-        ceil(fraction * others) of highest render_priority."""
+        ceil(fraction * others) of highest render_priority. cap > 0 (the image's budget,
+        GISettings.render_sc_texels): when the never-lit and seen tiles alone are more, every
+        never-lit one and of the seen the highest render_priority (the oldest first) up to
+        `cap` in all, none of the others (else the share of the others within `cap`): the
+        iteration's cost follows the image, not the scene's card area (1,000 small objects:
+        1,299 tiles, all seen)."""
         n = len(self.tiles)
-        if fraction >= 1.0 or not n:
+        if (fraction >= 1.0 and not 0 < cap < n) or not n:
             return np.arange(n)
         cam_pos = where.get("cam_pos")
+        never = self.count == 0
         always = (self.seen(cam_pos, where.get("view_proj")) if self.area is not None
-                  else self.facing(cam_pos)) | (self.count == 0)
+                  else self.facing(cam_pos)) | never
+        score = self.render_priority(frame, **where)
+        if 0 < cap < int(always.sum()):
+            lit = np.flatnonzero(always & ~never)
+            k = max(cap - int(never.sum()), 0)
+            pick = lit[np.argsort(-score[lit], kind="stable")[:k]]
+            return np.union1d(np.flatnonzero(never), pick)
+        if fraction >= 1.0:
+            return np.arange(n)
         rest = np.flatnonzero(~always)
         k = min(int(np.ceil(fraction * len(rest))), len(rest))
-        score = self.render_priority(frame, **where)
+        if cap > 0:
+            k = min(k, cap - int(always.sum()))
         pick = rest[np.argsort(-score[rest], kind="stable")[:k]]
         return np.union1d(np.flatnonzero(always), pick)
 

@@ -266,3 +266,26 @@ def test_tile_geometry_equals_the_texel_brute_force():
     want = texel_geometry(s, tc, cards, objects)
     for g, w in zip(got, want):
         np.testing.assert_allclose(g, w, rtol=1e-9, atol=1e-9)
+
+
+def test_render_cap_follows_the_image_not_the_card_area():
+    """choose_render with cap: every never-lit tile whatever the cap (an unlit tile reads
+    black), then of the tiles the view reads at most `cap` in all by render_priority (age,
+    visibility, distance), none of the rest; a cap at or above the tile count changes nothing."""
+    tc, cards, objects = ground_and_underside()
+    s = PageSchedule(tc, np.zeros(2))
+    s.geometry = tile_geometry(s, tc, cards, objects)
+    cam = (16.0, 0.0, 10.0)
+    view_proj = np.diag([1 / 40, 1 / 40, -1 / 40, 1.0])
+    where = dict(view_proj=view_proj, cam_pos=cam)
+    assert list(s.choose_render(1.0, 0, cap=1, **where)) == [0, 1, 2, 3]     # never lit: all
+    s.commit(np.arange(4), 0)
+    s.commit(np.array([1]), 5)                       # tile 1 (facing, nearer) updated since
+    # render_priority: age x weight / (1 + distance / 10 m): tile 0 (34 m) 6 x 0.23 > tile 1
+    # (10 m) 1 x 0.5, so the far tile, left behind, goes first
+    assert list(s.choose_render(1.0, 6, cap=1, **where)) == [0]
+    assert list(s.choose_render(0.25, 6, cap=2, **where)) == [0, 1]
+    assert list(s.choose_render(1.0, 6, cap=4, **where)) == [0, 1, 2, 3]
+    s.count[3] = 0                                   # a tile not lit yet: in, above the cap
+    assert list(s.choose_render(1.0, 6, cap=1, **where)) == [3]
+    assert list(s.choose_render(1.0, 6, cap=2, **where)) == [0, 3]
