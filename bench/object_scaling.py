@@ -11,6 +11,9 @@ For N = 10, 100, 1000 (`--counts`) in one process, same resolution:
              last still frame from LAST_RENDER (extract, sync, G-buffer, direct, GI)
   F12        bpy.ops.render.render at `--size`^2, render_frames = bounces = 1 (one GI iteration),
              one warm-up then `--repeat` timed, median and split
+  F12 default (--default-f12) one more F12 with the engine's default GI settings (render frames,
+             bounces, Converge Bounces, noise threshold) after the timed ones: seconds,
+             iterations, bounces (compare with EEVEE's 64 samples)
   EEVEE      (--eevee) the baseline in the same run: EEVEE's render at `--size`^2 with 1 sample
              (a viewport-like frame) and with its default 64, one warm-up then `--repeat`, median
 and the ratios N=max / N=min (EEVEE's too: how much the scene itself grew for a rasteriser).
@@ -22,6 +25,7 @@ grows with the object count.
 
     .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
                                              [--quality MEDIUM] [--f12-max N] [--passes] [--eevee]
+                                             [--default-f12]
     .venv/bin/python bench/object_scaling.py --gbuffer-only [--counts ...] [--size 128]
 """
 from __future__ import annotations
@@ -168,6 +172,16 @@ def measure(n: int, args, tmp: Path) -> dict:
     f12 = dict(median=statistics.median(times[1:]) * 1000, split=split(R),
                iterations=R.get("gi_iterations", 0), meshes_read=R.get("meshes_read", -1),
                passes={k: v * 1000 for k, v in timings.items()})
+    if args.default_f12:       # the defaults a user gets (the timed F12s pinned one iteration)
+        d = type(scene.lumen.engine).bl_rna.properties
+        for key in ("render_frames", "bounces", "converge_bounces"):
+            setattr(scene.lumen.engine, key, d[key].default)
+        t = time.perf_counter()
+        bpy.ops.render.render()
+        R = engine.LAST_RENDER
+        f12["default"] = dict(seconds=time.perf_counter() - t,
+                              iterations=R.get("gi_iterations", 0),
+                              bounces=R.get("gi_bounces", 0))
     eevee = eevee_times(scene, args.repeat) if args.eevee else None
     return dict(n=n, bake=bake_seconds, view=view, f12=f12, triangles=R.get("triangles", 0),
                 eevee=eevee)
@@ -270,6 +284,8 @@ def main():
     ap.add_argument("--density", type=float, default=8.0, help="bake voxels per metre")
     ap.add_argument("--f12-max", type=int, default=1 << 30,
                     help="skip F12 above this many objects (a GI F12 of 1,000 takes hours)")
+    ap.add_argument("--default-f12", action="store_true",
+                    help="one more F12 per N with the default GI settings")
     ap.add_argument("--eevee", action="store_true",
                     help="EEVEE's render with 1 and 64 samples per N: the baseline's own growth")
     ap.add_argument("--passes", action="store_true",
@@ -307,6 +323,10 @@ def main():
             if f is not None:
                 print(f"  F12 (1 GI iteration): median {f['median']:.1f} ms; split ms: "
                       f"{fmt(f['split'])}, meshes read {f['meshes_read']}", flush=True)
+            if f is not None and "default" in f:
+                dd = f["default"]
+                print(f"  F12 default settings: {dd['seconds']:.1f} s, {dd['iterations']} "
+                      f"iterations, {dd['bounces']} bounces", flush=True)
             if r.get("eevee"):
                 print(f"  EEVEE render: 1 sample {r['eevee'][1]:.1f} ms, 64 samples "
                       f"{r['eevee'][64]:.1f} ms", flush=True)
@@ -323,6 +343,10 @@ def main():
           f"{hi['view']['median'] / lo['view']['median']:.2f}" + (
               f", F12 N={f12[-1]['n']} / N={lo['n']} "
               f"{f12[-1]['f12']['median'] / lo['f12']['median']:.2f}" if len(f12) > 1 else ""))
+    if len(f12) > 1 and "default" in f12[0]["f12"] and "default" in f12[-1]["f12"]:
+        a, b = f12[0]["f12"]["default"]["seconds"], f12[-1]["f12"]["default"]["seconds"]
+        print(f"ratio N={f12[-1]['n']} / N={lo['n']}: F12 default settings {b / a:.2f} "
+              f"({a:.1f} -> {b:.1f} s)")
     if lo.get("eevee") and hi.get("eevee"):
         print(f"ratio N={hi['n']} / N={lo['n']}: EEVEE 1 sample "
               f"{hi['eevee'][1] / lo['eevee'][1]:.2f}, 64 samples "
