@@ -131,10 +131,10 @@ class PageSchedule:
         reads (`seen`; without tile areas: every tile facing the camera) and of the others the
         ceil(fraction * others) of highest render_priority. cap > 0 (the image's budget,
         GISettings.render_sc_texels): when the never-lit and seen tiles alone are more, every
-        never-lit one and of the seen the highest render_priority (the oldest first) up to
-        `cap` in all, none of the others (else the share of the others within `cap`): the
-        iteration's cost follows the image, not the scene's card area (1,000 small objects:
-        1,299 tiles, all seen)."""
+        never-lit one and of the seen the highest render_priority (age x visibility /
+        distance) up to `cap` in all, none of the others (else the share of the others within
+        `cap`): the iteration's cost follows the image, not the scene's card area (1,000 small
+        objects: 1,299 tiles, all seen)."""
         n = len(self.tiles)
         if (fraction >= 1.0 and not 0 < cap < n) or not n:
             return np.arange(n)
