@@ -43,7 +43,7 @@ from . import compute
 from .frame_noise import FrameNoise
 from .gi_settings import (MAX_BOUNCES, MIN_RENDER_FRAMES, RENDER_SC_MIN_TILES, GISettings,
                           bounces_converged)
-from .surface_cache_pages import TILE, tile_area, tile_geometry
+from .surface_cache_pages import TILE
 
 
 def _global_sdf(state, gi: GISettings):
@@ -87,12 +87,8 @@ def _probes(state, gi: GISettings, width: int, height: int):
 def _seen_tiles(cache, res, cam_pos, view_proj):
     """PageSchedule.seen for this camera (the tiles' world geometry first, once per surface
     cache and after objects moved): bool per tile, the tiles the image reads."""
-    pages = cache.pages
-    if pages.geometry is None:
-        tc, cards, objects = cache.packed.texel_card, cache.packed.cards, res.packed.objects
-        pages.set_geometry(tile_geometry(pages, tc, cards, objects),
-                           tile_area(pages, tc, cards, objects))
-    return pages.seen(cam_pos, view_proj)
+    cache.ensure_geometry(res.packed.objects)
+    return cache.pages.seen(cam_pos, view_proj)
 
 
 def sc_ray_lod(view_proj, cam_pos, height: int, rays_per_pixel: float):

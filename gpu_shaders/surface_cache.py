@@ -186,10 +186,8 @@ class SurfaceCache:
         if budget > 0:
             idx, blends = self.pages.choose(budget, frame, blend, history, **(where or {}))
         elif fraction < 1.0 or 0 < cap < len(self.pages):
-            if self.pages.geometry is None and objects is not None:
-                tc, cards = self.packed.texel_card, self.packed.cards
-                self.pages.set_geometry(tile_geometry(self.pages, tc, cards, objects),
-                                        tile_area(self.pages, tc, cards, objects))
+            if objects is not None:
+                self.ensure_geometry(objects)
             idx = self.pages.choose_render(fraction, frame, cap=cap, **(where or {}))
             blends = np.full(len(idx), float(blend))
         else:
@@ -198,6 +196,15 @@ class SurfaceCache:
         tw, th = self.pages.grid
         self.tile_frame = _tex((tw, th), 'R32F', self.pages.tile_frame)
         return idx, blends
+
+    def ensure_geometry(self, objects):
+        """The tiles' world geometry and areas (tile_geometry, tile_area) for `seen` and the
+        render priority, from the object table `objects`; kept until pages.set_geometry(None)
+        (objects moved)."""
+        if self.pages.geometry is None:
+            tc, cards = self.packed.texel_card, self.packed.cards
+            self.pages.set_geometry(tile_geometry(self.pages, tc, cards, objects),
+                                    tile_area(self.pages, tc, cards, objects))
 
     def _all_tiles(self, blend: float = 1.0) -> tuple:
         return np.arange(len(self.pages)), np.full(len(self.pages), float(blend))
