@@ -20,8 +20,8 @@ and the ratios N=max / N=min (EEVEE's too: how much the scene itself grew for a 
 Shader compilation happens in the first N's warm-ups.
 --passes: every compute dispatch timed by shader (bench/pass_profile.py's timed_dispatches; on
 llvmpipe a dispatch runs before it returns), per N the still viewport frames' medians and the
-last F12's sums, and a table of each pass at N=min against N=max, largest growth first: what
-grows with the object count.
+last F12's sums (and the default F12's), and a table of each pass at N=min against N=max,
+largest growth first: what grows with the object count.
 
     .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
                                              [--quality MEDIUM] [--f12-max N] [--passes] [--eevee]
@@ -176,12 +176,19 @@ def measure(n: int, args, tmp: Path) -> dict:
         d = type(scene.lumen.engine).bl_rna.properties
         for key in ("render_frames", "bounces", "converge_bounces"):
             setattr(scene.lumen.engine, key, d[key].default)
-        t = time.perf_counter()
-        bpy.ops.render.render()
+        timings.clear()
+        undo = pass_profile.timed_dispatches(timings) if args.passes else None
+        try:
+            t = time.perf_counter()
+            bpy.ops.render.render()
+            seconds = time.perf_counter() - t
+        finally:
+            if undo is not None:
+                undo()
         R = engine.LAST_RENDER
-        f12["default"] = dict(seconds=time.perf_counter() - t,
-                              iterations=R.get("gi_iterations", 0),
-                              bounces=R.get("gi_bounces", 0))
+        f12["default"] = dict(seconds=seconds, iterations=R.get("gi_iterations", 0),
+                              bounces=R.get("gi_bounces", 0),
+                              passes={k: v * 1000 for k, v in timings.items()})
     eevee = eevee_times(scene, args.repeat) if args.eevee else None
     return dict(n=n, bake=bake_seconds, view=view, f12=f12, triangles=R.get("triangles", 0),
                 eevee=eevee)
@@ -332,7 +339,9 @@ def main():
                       f"{r['eevee'][64]:.1f} ms", flush=True)
             if args.passes:
                 for label, d in (("viewport still", v["passes"]),
-                                 ("F12", f["passes"] if f is not None else {})):
+                                 ("F12", f["passes"] if f is not None else {}),
+                                 ("F12 default", f.get("default", {}).get("passes", {})
+                                  if f is not None else {})):
                     top = sorted(d.items(), key=lambda kv: -kv[1])
                     if top:
                         print(f"  {label} passes ms: " + ", ".join(
@@ -358,8 +367,11 @@ def main():
         print_passes("viewport still frame (median)", lo["view"]["passes"], hi["view"]["passes"],
                      lo["n"], hi["n"])
         if len(f12) > 1:
-            print_passes("F12 (last render)", f12[0]["f12"]["passes"], f12[-1]["f12"]["passes"],
-                         f12[0]["n"], f12[-1]["n"])
+            print_passes("F12 (1 GI iteration)", f12[0]["f12"]["passes"],
+                         f12[-1]["f12"]["passes"], f12[0]["n"], f12[-1]["n"])
+            if "default" in f12[0]["f12"] and "default" in f12[-1]["f12"]:
+                print_passes("F12 default settings", f12[0]["f12"]["default"]["passes"],
+                             f12[-1]["f12"]["default"]["passes"], f12[0]["n"], f12[-1]["n"])
 
 
 def print_passes(title: str, a: dict, b: dict, n_a: int, n_b: int):
