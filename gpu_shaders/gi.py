@@ -154,6 +154,10 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         tiles = cache.plan(frame0, blend=gi.cache_blend, budget=gi.sc_tiles, history=gi.history,
                            where=where)
     cache.light_direct(res, state.light_texture, len(state.lights), tiles=tiles)
+    if scene_changed and not final:
+        # the whole atlas once after a reset (combine then follows the relit tiles): the tiles
+        # not yet relit show their emission at once (F12's first iteration relights them all)
+        cache.combine(res)
     t2 = time.perf_counter()
     timings = {"gsdf": 0.0, "voxel_lighting": 0.0, "sc_indirect": 0.0, "probes": 0.0}
     screen = None
@@ -221,7 +225,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 frame_tiles = tiles                  # one iteration per viewport frame
             relit += cache.light_indirect(res, gsdf, sky, frame, t_max, frame_tiles, voxels,
                                           lod=lod)
-            cache.combine(res)
+            cache.combine(res, frame_tiles)     # the tiles relit (direct and indirect) only
         c = time.perf_counter()
         if voxels is not None:       # this combine's light, for the probes and the next rays
             voxels.update(res, gsdf, cache, frame, everything=final or objects_changed)

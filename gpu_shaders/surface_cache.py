@@ -54,7 +54,7 @@ PROBE_SH = _pass("surface_cache_probe_sh", ("sc_rays", "sc_probes", "sc_probe_po
 INDIRECT = _pass("surface_cache_indirect",
                  ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos") + PAGES,
                  images=(("out_image", 'RGBA32F', RW), ("delta_image", 'RGBA32F', RW)))
-COMBINE = _pass("surface_cache_combine", ("sc_direct", "sc_indirect"))
+COMBINE = _pass("surface_cache_combine", ("sc_direct", "sc_indirect", "sc_pages"))
 LAYER = _pass("surface_cache_layer", ("sc_direct", "sc_indirect", "sc_tile_age"),
               (('INT', 'layer_mode'),))
 VIEW = _pass("surface_cache_view", ("gbuf_position", "gbuf_normal"), (('VEC3', 'cam_pos'),))
@@ -267,13 +267,19 @@ class SurfaceCache:
         (gi_settings.bounces_converged), read back once per warm-up iteration."""
         return float(compute.read(self.indirect)[..., :3].sum(dtype=np.float64))
 
-    def combine(self, resources: SceneResources):
-        """surface_cache_combine: final = (direct + indirect) * albedo / pi + emissive."""
-        out = _tex(self.packed.lighting_size, 'RGBA32F')
-        COMBINE.run(self.packed.lighting_size, scene=resources, cache=self,
-                    texel_card=self.texel_card, sc_direct=self.direct, sc_indirect=self.indirect,
-                    out_image=out)
-        self.final = out
+    def combine(self, resources: SceneResources, tiles=None):
+        """surface_cache_combine: final = (direct + indirect) * albedo / pi + emissive on the
+        texels of `tiles` (plan(); None: all), in place: the others keep their final light, so
+        a viewport frame's combine costs its budget of tiles, not the whole atlas (1,000 small
+        objects: 38-58 ms a frame at 128 px)."""
+        tiles = tiles if tiles is not None else self._all_tiles()
+        if not len(tiles[0]):
+            return
+        pages = self._page_table(tiles)
+        COMBINE.run_groups((len(tiles[0]) * TILE // GROUP, TILE // GROUP), scene=resources,
+                           cache=_Showing(self, self.direct),   # sc_final: not the one written
+                           texel_card=self.texel_card, sc_direct=self.direct,
+                           sc_indirect=self.indirect, sc_pages=pages, out_image=self.final)
 
     LAYERS = {"albedo": 0, "normal": 1, "direct": 2, "indirect": 3, "position": 4, "cards": 5,
               "updates": 7,

@@ -59,6 +59,17 @@ class SCTestEngine(bpy.types.RenderEngine):
                      normal=sc.read_layer(res, "normal"), albedo=sc.read_layer(res, "albedo"),
                      twin_position=twin["position"], twin_normal=twin["normal"],
                      twin_albedo=twin["albedo"], twin_valid=twin["valid"])
+            # combine over tiles: the sun doubled everywhere, combined on half the tiles only
+            sc.combine(res)
+            final_a = sc.read("final")
+            half = np.arange(0, len(sc.pages), 2)
+            tiles = (half, np.ones(len(half)))
+            row[8:11] = {2 * E_SUN}
+            lights2 = gpu.types.GPUTexture((4, 1), format='RGBA32F', data=float_buffer(row))
+            sc.light_direct(res, lights2, 1)
+            sc.combine(res, tiles)
+            np.savez("combine.npz", a=final_a, b=sc.read("final"), direct=sc.read("direct"),
+                     tiles=sc.pages.tiles[half])
             OUT["stats"] = sc.stats()
             OUT["lighting_size"] = list(sc.packed.lighting_size)
             OUT["rows"] = sc.packed.rows
@@ -130,4 +141,18 @@ def test_card_texels_and_direct_sun(tmp_path):
     assert np.all(E[back] == 0.0)
     deep = under & np.all(np.abs(p[:, :2]) < 0.3 - MARGIN, axis=1)   # a voxel's blur from the sides
     assert deep.sum() > 10 and np.all(E[deep] <= 0.02 * E_SUN)     # the floor under the box is dark
+
+    # combine(tiles): final light recomputed on those tiles' texels only, in place
+    c = np.load(tmp_path / "combine.npz")
+    mask = np.zeros(valid.shape, bool)
+    for tx, ty in c["tiles"]:
+        mask[ty * 32:(ty + 1) * 32, tx * 32:(tx + 1) * 32] = True
+    assert (mask & valid).sum() > 500 and (~mask & valid).sum() > 500
+    np.testing.assert_array_equal(c["b"][~mask], c["a"][~mask])       # the others untouched
+    albedo = d["albedo"][..., :3]
+    expect = c["direct"][..., :3] * albedo / np.pi                    # no emission, no indirect
+    lit = mask & valid & (c["direct"][..., :3].max(axis=-1) > 0.1)
+    assert lit.sum() > 300
+    np.testing.assert_allclose(c["b"][lit][:, :3], expect[lit], rtol=2e-3, atol=1e-5)
+    assert np.all(c["b"][lit][:, :3].mean(axis=1) > 1.9 * c["a"][lit][:, :3].mean(axis=1))
     print(run.result)
