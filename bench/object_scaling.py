@@ -7,8 +7,10 @@ camera above one side of the floor that sees most of them. Baked at `--density` 
 For N = 10, 100, 1000 (`--counts`) in one process, same resolution:
   viewport   the engine's own view_draw through tools/viewport_harness.py at `--size`^2, Pixel
              Size 1, viewport quality `--quality`: one warm-up redraw (first frame: everything
-             extracted and uploaded) then `--repeat` still redraws, median, and the split of the
-             last still frame from LAST_RENDER (extract, sync, G-buffer, direct, GI)
+             extracted and uploaded) then `--still` still redraws (default 16: four cycles of
+             the default Spread Over 4, whose redraws differ in work: a median of 3 took 125 or
+             240 ms at 10 objects), their mean and median, and the split of the last still
+             frame from LAST_RENDER (extract, sync, G-buffer, direct, GI)
   F12        bpy.ops.render.render at `--size`^2, render_frames = bounces = 1 (one GI iteration),
              one warm-up then `--repeat` timed, median and split
   F12 default (--default-f12) one more F12 with the engine's default GI settings (render frames,
@@ -19,12 +21,12 @@ For N = 10, 100, 1000 (`--counts`) in one process, same resolution:
 and the ratios N=max / N=min (EEVEE's too: how much the scene itself grew for a rasteriser).
 Shader compilation happens in the first N's warm-ups.
 --passes: every compute dispatch timed by shader (bench/pass_profile.py's timed_dispatches; on
-llvmpipe a dispatch runs before it returns), per N the still viewport frames' medians and the
+llvmpipe a dispatch runs before it returns), per N the still viewport frames' means and the
 last F12's sums (and the default F12's), and a table of each pass at N=min against N=max,
 largest growth first: what grows with the object count.
 
     .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
-                                             [--quality MEDIUM] [--f12-max N] [--passes] [--eevee]
+                                             [--still 16] [--quality MEDIUM] [--f12-max N] [--passes] [--eevee]
                                              [--default-f12]
     .venv/bin/python bench/object_scaling.py --gbuffer-only [--counts ...] [--size 128]
 """
@@ -146,12 +148,13 @@ def measure(n: int, args, tmp: Path) -> dict:
 
     try:
         out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
-                                   redraws=args.repeat + 1, on_redraw=record)
+                                   redraws=args.still + 1, on_redraw=record)
         still = per_draw[1:] or per_draw
         view = dict(first=out["seconds"][0] * 1000,
-                    median=statistics.median(out["seconds"][1:]) * 1000, split=rows[-1],
+                    median=statistics.median(out["seconds"][1:]) * 1000,
+                    mean=statistics.fmean(out["seconds"][1:]) * 1000, split=rows[-1],
                     first_split=rows[0],
-                    passes={k: statistics.median(r.get(k, 0.0) for r in still) * 1000
+                    passes={k: statistics.fmean(r.get(k, 0.0) for r in still) * 1000
                             for k in {k for r in still for k in r}})
         if n > args.f12_max:
             return dict(n=n, bake=bake_seconds, view=view, f12=None,
@@ -287,6 +290,7 @@ def main():
     ap.add_argument("--counts", type=int, nargs="+", default=[10, 100, 1000])
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--still", type=int, default=16, help="still viewport redraws timed")
     ap.add_argument("--quality", default="MEDIUM", choices=("OFF", "LOW", "MEDIUM", "HIGH"))
     ap.add_argument("--density", type=float, default=8.0, help="bake voxels per metre")
     ap.add_argument("--f12-max", type=int, default=1 << 30,
@@ -324,8 +328,9 @@ def main():
             results.append(r)
             v, f = r["view"], r["f12"]
             print(f"N={n:5d} ({r['triangles']} triangles, bake {r['bake']:.1f} s)", flush=True)
-            print(f"  viewport {args.size}x{args.size}: first {v['first']:.1f} ms, still median "
-                  f"{v['median']:.1f} ms; still split ms: {fmt(v['split'])}", flush=True)
+            print(f"  viewport {args.size}x{args.size}: first {v['first']:.1f} ms, still mean "
+                  f"{v['mean']:.1f} ms (median {v['median']:.1f}); last still split ms: "
+                  f"{fmt(v['split'])}", flush=True)
             print(f"    first-frame split ms: {fmt(v['first_split'])}", flush=True)
             if f is not None:
                 print(f"  F12 (1 GI iteration): median {f['median']:.1f} ms; split ms: "
@@ -348,8 +353,9 @@ def main():
                             f"{k} {ms:.1f}" for k, ms in top if ms >= 0.5), flush=True)
     lo, hi = results[0], results[-1]
     f12 = [r for r in results if r["f12"] is not None]
-    print(f"ratio N={hi['n']} / N={lo['n']}: viewport still frame "
-          f"{hi['view']['median'] / lo['view']['median']:.2f}" + (
+    print(f"ratio N={hi['n']} / N={lo['n']}: viewport still frame (mean of {args.still}) "
+          f"{hi['view']['mean'] / lo['view']['mean']:.2f} (medians "
+          f"{hi['view']['median'] / lo['view']['median']:.2f})" + (
               f", F12 N={f12[-1]['n']} / N={lo['n']} "
               f"{f12[-1]['f12']['median'] / lo['f12']['median']:.2f}" if len(f12) > 1 else ""))
     if len(f12) > 1 and "default" in f12[0]["f12"] and "default" in f12[-1]["f12"]:
@@ -362,9 +368,9 @@ def main():
               f"{hi['eevee'][64] / lo['eevee'][64]:.2f}")
     for key in ("extract", "sync", "gbuffer", "direct", "gi"):
         a, b = lo["view"]["split"][key], hi["view"]["split"][key]
-        print(f"  viewport still {key:8s} {a:8.1f} -> {b:8.1f} ms")
+        print(f"  viewport last still {key:8s} {a:8.1f} -> {b:8.1f} ms")
     if args.passes:
-        print_passes("viewport still frame (median)", lo["view"]["passes"], hi["view"]["passes"],
+        print_passes("viewport still frame (mean)", lo["view"]["passes"], hi["view"]["passes"],
                      lo["n"], hi["n"])
         if len(f12) > 1:
             print_passes("F12 (1 GI iteration)", f12[0]["f12"]["passes"],
