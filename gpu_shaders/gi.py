@@ -43,6 +43,7 @@ from . import compute
 from .frame_noise import FrameNoise
 from .gi_settings import (MAX_BOUNCES, MIN_RENDER_FRAMES, RENDER_SC_MIN_TILES, GISettings,
                           bounces_converged)
+from .screen_probes import VIEWPORT_FALLBACK_BUDGET
 from .surface_cache_pages import TILE
 
 
@@ -259,6 +260,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                                   rc_retrace=None)
                 if split > 1:
                     rc.update(split=split, split_frame=split_frame)
+                if not final and gather is None:
+                    rc["fallback_budget"] = VIEWPORT_FALLBACK_BUDGET
                 new = probes.gather(res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels,
                                     **rc)
                 gathered += 1

@@ -90,6 +90,9 @@ INTEGRATE = compute.Pass("screen_probe_integrate",
                                ('IVEC2', 'px_phase'), ('INT', 'px_step')))
 FALLBACK_GROUP = 64
 FALLBACK_BUDGET = 1.0      # the fallback's rays per frame, in the uniform probes' ray count
+VIEWPORT_FALLBACK_BUDGET = 0.5  # the viewport's (gather's fallback_budget): among 1,000 small
+                                # objects 131 of a 397 ms still frame at 1.0 at 128 px; its
+                                # strata then turn over twice the redraws
 FALLBACK = compute.Pass("screen_probe_fallback",
                         samplers=GBUF + radiance_cache.SAMPLERS,
                         images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}),
@@ -135,7 +138,8 @@ class ScreenProbes:
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,
                voxels=None, rcache=None, rc_budget: int = 0, rc_blend: float = 0.25,
                rc_retrace=None, importance: bool = True, adaptive: bool = True,
-               screen=None, split: int = 1, split_frame: int = 0):
+               screen=None, split: int = 1, split_frame: int = 0,
+               fallback_budget: float | None = None):
         """This frame's per-pixel indirect irradiance (RGBA32F texture; w: 1 interpolated,
         0 fallback, -1 background). voxels: voxel_lighting.VoxelLighting for the rays' far hits
         (None: refined on the mesh SDFs). rcache: radiance_cache.RadianceCache (None: off): rays
@@ -150,7 +154,9 @@ class ScreenProbes:
         GISettings.split): integrate only one pixel of every sqrt(split)^2 block, the one whose
         turn it is at redraw `split_frame` since the history's reset (temporal_split fills the
         rest), and trace one texel of every such block of the probes' octahedral maps, the
-        others kept from earlier redraws (placement held for `split` redraws)."""
+        others kept from earlier redraws (placement held for `split` redraws).
+        fallback_budget: the fallback's rays at most, in the uniform probes' ray count of this
+        redraw (screen_probe_fallback.comp.glsl; None: FALLBACK_BUDGET)."""
         gw, gh = self.grid
         r = self.res
         step = GISettings(split=split).split_step
@@ -261,7 +267,8 @@ class ScreenProbes:
         # its budget: the uniform probes' rays of this redraw (a list of thousands of pixels
         # among many small objects cost 4x a whole viewport frame at 16 rays each)
         FALLBACK.run(lw * lh, **tracers, frame=int(frame), t_max=float(t_max),
-                     fb_budget=int(FALLBACK_BUDGET * gw * gh * r * r) // (step * step),
+                     fb_budget=int((FALLBACK_BUDGET if fallback_budget is None else fallback_budget)
+                                   * gw * gh * r * r) // (step * step),
                      fb_turn=int(frame) // split,        # a pixel's turns (the split's)
                      gbuf_position=gpos, gbuf_normal=gnor, cam_pos=cam,
                      out_image=tex["integrated"], fb_list=tex["fb_list"],
