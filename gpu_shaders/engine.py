@@ -346,6 +346,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        gi_settings=gi_cfg.__dict__.copy(),
                        gi_probe_tile=getattr(state.probes, "tile", None),
                        gi_probe_res=getattr(state.probes, "res", None))
+        if not final and not gi_out["converged"]:
+            state.refine_seconds = gi_out["timings"]["total"]
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
             LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])
         if view == "TRACE_METHOD" and getattr(state, "screen_trace", None) is not None:
@@ -365,10 +367,11 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
             textures = aa["textures"]
             aa_info = dict(aa_seconds=aa["seconds"], aa_samples=aa["samples"])
         elif gi_info.get("gi_converged", True) and state.direct.converged:
-            # a still viewport: one jittered sample per redraw, ending on the F12 image
+            # a still viewport: jittered samples, ending on the F12 image; as many a redraw as
+            # fit in the last refining redraw's GI time (one at least)
             key = (np.asarray(view_proj, np.float64).tobytes(), width, height, state.epoch,
                    sky.key, gi_cfg.aa_samples)
-            textures = state.aa.step(key, *aa_args)
+            textures = state.aa.step(key, *aa_args, seconds=state.refine_seconds)
             aa_info = dict(aa_seconds=time.perf_counter() - t_aa, aa_samples=state.aa.done,
                            aa_progress=(state.aa.done, gi_cfg.aa_samples))
         else:

@@ -103,8 +103,11 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
     # a still view refines, says when it is done, and then equals F12 of the same camera
     assert full[0]["converged"] is False and full[-1]["converged"] is True, full
     assert all(d["quality"] == "LOW" and d["width"] == 64 for d in full)
-    # then anti-aliases one jittered sample per redraw, the F12 render's samples
+    # then anti-aliases with the F12 render's jittered samples, as many a redraw as fit in the
+    # last refining redraw's GI time (a redraw with no GI work left): fewer redraws than samples
     assert full[0]["aa"] == [0, 8] and full[-1]["aa"] == [8, 8], [d["aa"] for d in full]
+    aa_redraws = [d["aa"][0] for d in full if 0 < d["aa"][0]]
+    assert len(aa_redraws) - aa_redraws.count(8) + 1 < 8, [d["aa"] for d in full]
     err = rel_mse(np.load(tmp_path / "full_frame.npy"), f12)
     print("converged viewport against F12: relMSE", err)
     assert err < 0.01, f"converged viewport against F12: relMSE {err:.4f}"
