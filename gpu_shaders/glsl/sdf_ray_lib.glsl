@@ -92,6 +92,11 @@ vec3 gi_lifted(vec3 a, vec3 na, float voxel)
 bool gi_visible_from(vec3 pa, float da, vec3 b, vec3 nb, float voxel)
 {
   vec3 pb = gi_lifted(b, nb, voxel);
+  float shell = GI_HIT_VOXELS * voxel;
+  if (length(pb - pa) < shell) {
+    return true;           /* before sampling b's end: the pairs closer than half a voxel (an
+                            * anti-aliasing sample's neighbours, mostly) cost no field sample */
+  }
   float h;
   int obj;
   float db = sdf_scene(pb, h, obj);
@@ -103,12 +108,8 @@ bool gi_visible_from(vec3 pa, float da, vec3 b, vec3 nb, float voxel)
     da = db;
     db = td;
   }
-  float shell = GI_HIT_VOXELS * voxel;
   vec3 d = pb - pa;
   float len = length(d);
-  if (len < shell) {
-    return true;
-  }
   if (da <= shell) {
     /* Both ends within half a voxel of a surface: no ray can tell. Two points on the two sides
      * of a wall thinner than a voxel see its field rise away from it in opposite directions;
