@@ -13,7 +13,8 @@ Textures (card_packing.py has the layouts):
         indirect  E_indirect, irradiance from rays into the scene, read from `final` (next file)
         final     (E_direct + E_indirect) * albedo / pi + emissive: the radiance rays read at hits
 The passes, one GLSL file each, run by this class's methods: surface_cache_direct (lights, near emitters),
-surface_cache_probe_trace / _probe_sh / _indirect (radiosity probes: 16 rays per 4x4 texels
+surface_cache_probe_place / _probe_trace / _probe_sh / _indirect (radiosity probes: a site per 4x4
+texels, 16 rays each
 through gi_trace_lib.glsl, filtered, two-band SH, interpolated per texel), surface_cache_combine
 (final), and for
 the debug views surface_cache_layer / surface_cache_view. Reading last frame's `final` in the
@@ -45,10 +46,11 @@ def _pass(name, samplers=(), push=(), images=("out_image",)):
 
 DIRECT = _pass("surface_cache_direct", ("lights", "sc_pages"),
                (('INT', 'light_count'), ('INT', 'light_samples')))
-PROBE_TRACE = _pass("surface_cache_probe_trace", PAGES,
+PROBE_PLACE = _pass("surface_cache_probe_place", PAGES, (('INT', 'frame'),),
+                    ("out_image", "probe_pos_out"))
+PROBE_TRACE = _pass("surface_cache_probe_trace", ("sc_probes", "sc_probe_pos") + PAGES,
                     (('INT', 'frame'), ('FLOAT', 't_max'), ('VEC3', 'cam_pos'),
-                     ('FLOAT', 'lod_focal'), ('FLOAT', 'lod_rays')),
-                    ("out_image", "probe_out", "probe_pos_out"))
+                     ('FLOAT', 'lod_focal'), ('FLOAT', 'lod_rays')))
 PROBE_SH = _pass("surface_cache_probe_sh", ("sc_rays", "sc_probes", "sc_probe_pos") + PAGES,
                  images=("out_image", "irradiance_out"))
 INDIRECT = _pass("surface_cache_indirect",
@@ -228,7 +230,8 @@ class SurfaceCache:
     def light_indirect(self, resources: SceneResources, gsdf, sky, frame: int, t_max: float,
                        tiles, voxels=None, lod=None) -> int:
         """E_indirect = mix(last E_indirect, this frame's probes, blend) on `tiles` (plan(): the
-        tile indices and a blend each), in three passes over those tiles only:
+        tile indices and a blend each), in four passes over those tiles only:
+        surface_cache_probe_place (each probe's site this frame, once for its rays),
         surface_cache_probe_trace (16 rays per probe of 4x4 texels, surface cache at hits),
         surface_cache_probe_sh (3x3 probe filter, two-band SH), surface_cache_indirect (per
         texel: 2x2 probes' SH irradiance at the texel's normal, temporal blend, in place).
@@ -244,14 +247,17 @@ class SurfaceCache:
         k = len(idx)
         common = dict(scene=resources, cache=self, texel_card=self.texel_card, sc_pages=pages,
                       sc_tile_frame=self.tile_frame)
+        PROBE_PLACE.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
+                               frame=int(frame), out_image=t["probes"],   # one per probe
+                               probe_pos_out=t["positions"])
         PROBE_TRACE.run_groups((k * TILE // GROUP, TILE // GROUP), **common,   # one per ray
                                gsdf=gsdf, sky=sky, voxels=voxels, frame=int(frame),
                                t_max=float(t_max),
                                cam_pos=compute.vec(lod[0] if lod else (0.0, 0.0, 0.0)),
                                lod_focal=float(lod[1]) if lod else 0.0,
                                lod_rays=float(lod[2]) if lod else 0.0,
-                               out_image=t["rays"], probe_out=t["probes"],
-                               probe_pos_out=t["positions"])
+                               sc_probes=t["probes"], sc_probe_pos=t["positions"],
+                               out_image=t["rays"])
         PROBE_SH.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
                             sc_rays=t["rays"], sc_probes=t["probes"],   # one per probe
                             sc_probe_pos=t["positions"], out_image=t["sh"],

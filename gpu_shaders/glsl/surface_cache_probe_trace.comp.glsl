@@ -14,11 +14,10 @@
  * lod_focal / distance to cam_pos; lod_focal = 0: every ray). The skipped slots are written
  * a = 0 and surface_cache_probe_sh leaves them out: fewer rays, the same expectation. Whole rows
  * of the ray block: the 8 invocations a llvmpipe SIMD row runs together skip together.
- * Inputs: texel_card, card tables and layers, sc_final, sc_pages; frame, t_max, cam_pos,
- * lod_focal, lod_rays.
- * Outputs: out_image (rays): radiance rgb, a = 1 (0: no probe); probe_out (one texel per probe,
- * written by ray 0): world normal xyz, w = card row + 1 (0: no probe); probe_pos_out: world position
- * xyz, w = the object's voxel.
+ * The probe's site and surface come from surface_cache_probe_place (sc_probes, sc_probe_pos).
+ * Inputs: texel_card, card tables and layers, sc_final, sc_pages, sc_probes, sc_probe_pos;
+ * frame, t_max, cam_pos, lod_focal, lod_rays.
+ * Output out_image (rays): radiance rgb, a = 1 (0: no probe).
  */
 void main()
 {
@@ -31,24 +30,17 @@ void main()
   ivec2 probe = tx / SCP_SIZE;
   ivec2 local = tx - probe * SCP_SIZE;
   int k = local.x + SCP_SIZE * local.y;
-  ivec2 texel;
-  int row;
-  if (!scp_texel(probe, frame, texel, row)) {
+  vec4 site = texelFetch(sc_probes, probe, 0);
+  if (site.w < 0.5) {
     imageStore(out_image, tx, vec4(0.0));
-    if (k == 0) {
-      imageStore(probe_out, probe, vec4(0.0));
-      imageStore(probe_pos_out, probe, vec4(0.0));
-    }
     return;
   }
-  vec3 p, n;
-  int obj;
-  scp_surface(texel, row, p, n, obj);
-  if (k == 0) {
-    imageStore(probe_out, probe, vec4(n, float(row + 1)));
-    imageStore(probe_pos_out, probe, vec4(p, gi_object_voxel(obj)));
-  }
+  int row = int(site.w + 0.5) - 1;
+  vec3 n = site.xyz;
+  vec4 at = texelFetch(sc_probe_pos, probe, 0);
+  vec3 p = at.xyz;
   if (lod_focal > 0.0) {
+    int obj = int(sc_card(row, 0).x + 0.5);
     vec4 t1 = sc_card(row, 1);
     vec4 t2 = sc_card(row, 2);
     vec2 local_texel = (t2.zw - t2.xy) / max(t1.zw, vec2(1.0));
@@ -65,6 +57,6 @@ void main()
   }
   vec3 dir = scp_dir(probe, frame, k, n);
   float t, w;
-  vec3 L = gi_radiance(p + n * gi_object_voxel(obj), dir, t_max, t, w);
+  vec3 L = gi_radiance(p + n * at.w, dir, t_max, t, w);
   imageStore(out_image, tx, vec4(L, w > 0.0 ? 1.0 : 0.5));
 }
