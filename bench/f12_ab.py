@@ -44,6 +44,31 @@ def timed_render():
     return time.perf_counter() - wall, time.process_time() - cpu, timings
 
 
+def baked_scene(name: str, cache_dir: str):
+    """bench/quality_scenes scene `name`, baked into `cache_dir`, set to render with Lumen GI at
+    100% (needs the add-on loaded: tools/demo.load_addon)."""
+    import bpy
+    import quality_scenes
+
+    scene = quality_scenes.build(name)
+    scene.lumen.bake.cache_dir = cache_dir
+    if bpy.ops.lumen.bake() != {'FINISHED'}:
+        raise SystemExit(f"{name}: bake failed: {scene.lumen.last_bake.status}")
+    scene.render.engine = "LUMEN_GI"
+    scene.render.resolution_percentage = 100
+    return scene
+
+
+def warm_then_time(scene, size: int):
+    """A 32x32 F12 (shader compilation), then timed_render() at size x size."""
+    import bpy
+
+    scene.render.resolution_x = scene.render.resolution_y = 32
+    bpy.ops.render.render()
+    scene.render.resolution_x = scene.render.resolution_y = size
+    return timed_render()
+
+
 def main():
     import glsl_ab
 
@@ -54,10 +79,8 @@ def main():
     args = ap.parse_args()
     folders, settings_b = glsl_ab.ab_versions(args)
 
-    import bpy
     import demo
     import numpy as np
-    import quality_scenes
 
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
@@ -67,20 +90,12 @@ def main():
         seconds, cpus, passes = [[], []], [[], []], [defaultdict(list), defaultdict(list)]
         images = [None, None]
         with tempfile.TemporaryDirectory() as tmp:
-            scene = quality_scenes.build(name)
-            scene.lumen.bake.cache_dir = tmp
-            if bpy.ops.lumen.bake() != {'FINISHED'}:
-                raise SystemExit("bake failed")
-            scene.render.engine = "LUMEN_GI"
-            scene.render.resolution_percentage = 100
+            scene = baked_scene(name, tmp)
             for _ in range(args.rounds):
                 for version, folder in enumerate(folders):
                     versions.use(version, folder)
                     try:
-                        scene.render.resolution_x = scene.render.resolution_y = 32
-                        bpy.ops.render.render()                       # compilation
-                        scene.render.resolution_x = scene.render.resolution_y = args.size
-                        total, cpu, timings = timed_render()
+                        total, cpu, timings = warm_then_time(scene, args.size)
                     finally:
                         versions.settings_back()
                     R = engine.LAST_RENDER

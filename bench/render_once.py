@@ -26,12 +26,10 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 
 
 def render(out: str, scenes: list, size: int) -> None:
-    import bpy
     import demo
     import numpy as np
 
     import f12_ab
-    import quality_scenes
 
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
@@ -39,16 +37,7 @@ def render(out: str, scenes: list, size: int) -> None:
     Path(out).mkdir(parents=True, exist_ok=True)
     for name in scenes:
         with tempfile.TemporaryDirectory() as tmp:
-            scene = quality_scenes.build(name)
-            scene.lumen.bake.cache_dir = tmp
-            if bpy.ops.lumen.bake() != {'FINISHED'}:
-                raise SystemExit(f"{name}: bake failed: {scene.lumen.last_bake.status}")
-            scene.render.engine = "LUMEN_GI"
-            scene.render.resolution_percentage = 100
-            scene.render.resolution_x = scene.render.resolution_y = 32
-            bpy.ops.render.render()
-            scene.render.resolution_x = scene.render.resolution_y = size
-            wall, cpu, passes = f12_ab.timed_render()
+            wall, cpu, passes = f12_ab.warm_then_time(f12_ab.baked_scene(name, tmp), size)
             R = engine.LAST_RENDER
             if "error" in R:
                 raise SystemExit(f"{name}: {R.get('traceback', R['error'])}")
