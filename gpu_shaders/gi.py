@@ -167,7 +167,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         from .screen_trace import ScreenTrace
         screen = ScreenTrace(gbuf, view_proj, cam_pos, width, height, gi.screen_steps,
                              gi.screen_thickness, hidden=state.hidden_rows(),
-                             rays=probes.res ** 2)
+                             rays=probes.res ** 2, hit=gi.screen_hit)
     state.screen_trace = screen
     if final:
         schedule = list(gi.render_schedule())
@@ -246,11 +246,12 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                 # split: probe trace 0.50x, probe filter 0.08x, frame 0.78x)
                 rc = {} if gather is not None else {"importance": gi.probe_importance,
                                                  "adaptive": gi.adaptive_probes and split == 1}
-                if screen is not None and probes.history is not None:
+                if screen is not None and screen.needs_colour and probes.history is not None:
                     # F12: the last gather's own light (the running mean lags behind the cache's
                     # bounces); the viewport: the history (its converged light)
                     screen.light(direct, last if final and last is not None
                                  else probes.history, sky)
+                if screen is not None:
                     rc["screen"] = screen
                 if rcache is not None:
                     rc.update(rcache=rcache, rc_budget=gi.rc_budget, rc_blend=0.25,

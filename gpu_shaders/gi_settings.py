@@ -95,6 +95,8 @@ class GISettings:
                                    # relMSE still above the SDF-only trace on cornell, window
                                    # and glow (128 px: 0.0112 / 0.0081, 0.0237 / 0.0232,
                                    # 0.0286 / 0.0252; README: screen trace)
+    screen_hit: str = "CACHE"      # a screen hit's light: the surface cache's ("CACHE") or the
+                                   # screen colour ("COLOUR", the lecture's): screen_trace.HITS
     screen_steps: int = 50         # HZB cells per screen ray (the lecture's "HZB Max Step=50")
     screen_thickness: float = 0.1  # metres a surface is assumed thick behind the depth buffer
     pixel_size: int = 1            # the viewport's Pixel Size (engine.frame): probe_tile_for
@@ -236,6 +238,7 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
                     voxel_lighting=bool(getattr(s, "voxel_lighting", d.voxel_lighting)),
                     radiance_cache=bool(getattr(s, "radiance_cache", d.radiance_cache)),
                     screen_trace=bool(getattr(s, "screen_trace", d.screen_trace)),
+                    screen_hit=str(getattr(s, "screen_hit", d.screen_hit)),
                     adaptive_probes=bool(getattr(s, "adaptive_probes", d.adaptive_probes)),
                     probe_importance=bool(getattr(s, "probe_importance", d.probe_importance)),
                     converge_bounces=bool(getattr(s, "converge_bounces", d.converge_bounces)),

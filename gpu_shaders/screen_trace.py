@@ -51,6 +51,10 @@ SAMPLERS = ("gbuf_position", "gbuf_normal", "hzb", "screen_colour", "screen_came
 # screen_cam: camera position xyz, w the thickness (m) a surface is assumed behind the depth
 # buffer; screen_steps: HZB cells per ray (0: off)
 PUSH = (('VEC4', 'screen_cam'), ('INT', 'screen_steps'))
+# what a screen hit's light is: "CACHE" the surface cache's at the hit (the SDFs go on from the
+# hit pixel's entry, a step or two: the light an SDF hit reads, the screen having found the empty
+# space before it), "COLOUR" the screen colour (the lecture's; noisier and darker here: README)
+HITS = ("CACHE", "COLOUR")
 METHOD = compute.Pass("gi_trace_method", samplers=SAMPLERS,
                       push=PUSH + (('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 't_max')))
 
@@ -60,16 +64,22 @@ class ScreenTrace:
     iterations of one frame; rebuilt per frame)."""
 
     def __init__(self, gbuf: dict, view_proj, cam_pos, width: int, height: int, steps: int = 50,
-                 thickness: float = 0.1, hidden=(), rays: int = 64):
+                 thickness: float = 0.1, hidden=(), rays: int = 64, hit: str = "CACHE"):
         self.gbuf, self.width, self.height = gbuf, int(width), int(height)
         self.view_proj = np.asarray(view_proj, np.float64)
-        self.camera = camera_texture(view_proj, ray_cone_tan(rays))
+        self.hit = hit if hit in HITS else "CACHE"
+        self.camera = camera_texture(view_proj, ray_cone_tan(rays), self.hit == "CACHE")
         self.cam = compute.vec(cam_pos) + [float(thickness)]
         self.steps = int(steps)
         self.hzb = hzb.depth_pyramid(gbuf, view_proj, width, height)
         self.colour = None
         self.hidden_count = len(hidden)
         self.hidden = hidden_texture(hidden)
+
+    @property
+    def needs_colour(self) -> bool:
+        """Whether hits read the screen colour (`light` before each gather)."""
+        return self.hit == "COLOUR"
 
     def light(self, direct_tex, e_history, sky):
         """The screen colour: the composite of this frame's direct light and the last gather's
@@ -84,9 +94,11 @@ class ScreenTrace:
     def inputs(self) -> dict:
         """A tracing pass's SAMPLERS and PUSH (compute.Pass keywords)."""
         g = self.gbuf["textures"]
-        on = self.colour is not None                # no gather yet to read: steps 0 (off)
+        # the screen colour's hits: no gather yet to read, steps 0 (off)
+        on = self.colour is not None or not self.needs_colour
         return dict(gbuf_position=g["position"], gbuf_normal=g["normal"], hzb=self.hzb,
-                    screen_colour=self.colour if on else compute.texture((1, 1)),
+                    screen_colour=(self.colour if self.colour is not None
+                                   else compute.texture((1, 1))),
                     screen_camera=self.camera, screen_hidden=self.hidden,
                     screen_cam=self.cam, screen_steps=self.steps if on else 0)
 
@@ -109,15 +121,17 @@ class ScreenTrace:
         return out
 
 
-def camera_texture(view_proj, cone_tan: float = 0.0):
+def camera_texture(view_proj, cone_tan: float = 0.0, hit_cache: bool = False):
     """view_proj as a 5x1 RGBA32F texture, texel k < 4 its column k (GLSL's mat4(c0, c1, c2,
-    c3)), texel 4 x the tangent of the cone a ray stands for (its screen-colour footprint)."""
+    c3)), texel 4 x the tangent of the cone a ray stands for (its screen-colour footprint),
+    y 1 where a hit's light is the surface cache's (HITS "CACHE")."""
     import gpu
 
     from .resources import float_buffer
     cols = np.zeros((5, 4), np.float32)
     cols[:4] = np.asarray(view_proj, np.float32).T     # row k = column k
     cols[4, 0] = cone_tan
+    cols[4, 1] = 1.0 if hit_cache else 0.0
     return gpu.types.GPUTexture((5, 1), format='RGBA32F', data=float_buffer(cols.reshape(1, 5, 4)))
 
 

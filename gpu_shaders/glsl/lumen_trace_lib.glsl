@@ -53,6 +53,7 @@ float screen_hidden_guard(vec3 o, vec3 dir, float t_end)
 vec3 lumen_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out int kind)
 {
   float t_start = 0.0;
+  bool on_screen = false;
   if (screen_steps > 0) {
     float t_free;
     ivec2 hit_px;
@@ -63,16 +64,21 @@ vec3 lumen_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out int kind)
       ts = -1.0;
       t_free = min(t_free, guard);
     }
-    if (ts >= 0.0) {
+    vec4 cone = texelFetch(screen_camera, ivec2(4, 0), 0);
+    if (ts >= 0.0 && cone.y < 0.5) {
       hit_t = ts;
       kind = LUMEN_SCREEN;
-      return screen_cone(screen_colour, screen_view_proj(), screen_cam.xyz,
-                         texelFetch(screen_camera, ivec2(4, 0), 0).x, o + dir * ts, ts, hit_px);
+      return screen_cone(screen_colour, screen_view_proj(), screen_cam.xyz, cone.x,
+                         o + dir * ts, ts, hit_px);
     }
+    /* SCREEN_HIT_CACHE (cone.y 1): a hit's light is the surface cache's, as an SDF hit reads
+     * it: the SDFs go on from the hit pixel's entry (t_free), a step or two from the surface */
+    on_screen = ts >= 0.0;
     t_start = t_free;
   }
   float w;
   vec3 L = gi_radiance_from(o, dir, t_start, tmax, hit_t, w);
-  kind = hit_t >= tmax ? LUMEN_SKY : (hit_t < GSDF_MESH_SPLIT ? LUMEN_MESH : LUMEN_GLOBAL);
+  kind = on_screen ? LUMEN_SCREEN :
+         (hit_t >= tmax ? LUMEN_SKY : (hit_t < GSDF_MESH_SPLIT ? LUMEN_MESH : LUMEN_GLOBAL));
   return L;
 }
