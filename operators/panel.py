@@ -256,6 +256,9 @@ class RENDER_PT_lumen_gi_lumen(MethodPanel, bpy.types.Panel):
         layout, s = self.begin(context)
         layout.prop(s, "gi_gather")
         layout.prop(s, "screen_trace")
+        row = layout.row()
+        row.active = s.screen_trace
+        row.prop(s, "screen_hit")
         layout.prop(s, "adaptive_probes")
         layout.prop(s, "probe_importance")
         layout.prop(s, "radiance_cache")

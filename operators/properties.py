@@ -197,6 +197,15 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                     "Experimental: off by default, it made a Cornell box's bounced light 9% "
                     "darker and saved no render time here",
         default=GI.screen_trace)
+    screen_hit: EnumProperty(
+        name="Screen Hit Light",
+        description="With Screen Trace: the light a ray that hits something on screen brings back",
+        items=(("CACHE", "Surface Cache", "The light stored on the surface it hit, as a ray "
+                "traced through the distance fields reads it: the screen only finds the hit "
+                "faster"),
+               ("COLOUR", "Screen Colour", "The image's own colour where it hit (Lumen's way "
+                "in the lecture): sharper, but noisier and darker here")),
+        default=GI.screen_hit)
     adaptive_probes: BoolProperty(
         name="Adaptive Probes",
         description="Where the regular probes cannot light a pixel (edges, small objects), place "
