@@ -146,7 +146,20 @@ float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, 
          * t_free rather than the walk finding a surface farther on that may lie beyond it */
         return SCREEN_BEHIND;
       }
-      free_so_far = free_so_far && da >= 0.0 && db >= 0.0;
+      bool front = da >= 0.0 && db >= 0.0;
+      /* in front of this pixel's plane vouches for the pixel only if also in front of its four
+       * neighbours' planes: a surface a pixel away reaches into this one below the pixel grid
+       * (a 10 cm wall's side at 48 px was passed through: its floor lost 4.7% of the wall's
+       * light, test_screen_trace). Only for a world trace that goes on from t_free. */
+      for (int k = 0; stop_behind && front && free_so_far && k < 4; k++) {
+        ivec2 q = cell + ivec2(k == 0 ? 1 : (k == 1 ? -1 : 0), k == 2 ? 1 : (k == 3 ? -1 : 0));
+        vec3 pq, nq;
+        if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, size))
+            && gbuf_surface(q, cam_pos, pq, nq)) {
+          front = dot(o + dir * ta - pq, nq) >= 0.0 && dot(o + dir * tb - pq, nq) >= 0.0;
+        }
+      }
+      free_so_far = free_so_far && front;
     }
     if (free_so_far) {
       t_free = tb;

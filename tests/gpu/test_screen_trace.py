@@ -42,15 +42,17 @@ def world(colour):
     w.use_nodes = True
     w.node_tree.nodes["Background"].inputs["Color"].default_value = (*colour, 1.0)
 
-def render(name, screen, view="COMBINED"):
+def render(name, screen, view="COMBINED", hit="CACHE"):
     scene = bpy.context.scene
     scene.lumen.engine.screen_trace = screen
+    scene.lumen.engine.screen_hit = hit
     scene.lumen.engine.debug_view = view
     bpy.ops.render.render()
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("traceback", R.get("error"))
     if view == "COMBINED":
-        np.save(f"{name}_{screen}_indirect.npy", R["indirect"])
+        np.save(f"{name}_{screen}{'_colour' if hit == 'COLOUR' else ''}_indirect.npy",
+                R["indirect"])
         np.save(f"{name}_position.npy", R["position"])
         out[f"{name}_{screen}"] = dict(gi=R["gi_timings"], memory=R["gpu_bytes"])
     else:
@@ -76,6 +78,7 @@ world((0.0, 0.0, 0.0))
 camera((-1.2, -0.9, -0.3), (1.0, 0.6, 0.1))
 setup(bounces=4)
 render("room", True)
+render("room", True, hit="COLOUR")
 render("room", True, "TRACE_METHOD")
 render("room", False)
 
@@ -104,6 +107,7 @@ world((0.0, 0.0, 0.0))
 camera((3.0, -2.5, 2.5), (-0.5, 0.0, 0.5), lens=30.0)
 setup()
 render("wall", True)
+render("wall", True, hit="COLOUR")
 render("wall", True, "TRACE_METHOD")
 render("wall", False)
 
@@ -128,6 +132,11 @@ def _load(tmp_path, name):
     return on, off, shares, hit
 
 
+def _colour(tmp_path, name):
+    """The screen trace's indirect light with screen_hit COLOUR (the lecture's screen colour)."""
+    return np.load(tmp_path / f"{name}_True_colour_indirect.npy")[..., :3].mean(-1)
+
+
 def test_screen_trace(tmp_path):
     run = run_python(SNIPPET, tmp_path, timeout=900)
     assert run.returncode == 0, run.explain()
@@ -140,9 +149,15 @@ def test_screen_trace(tmp_path):
     print("room shares (screen, mesh, global):", shares.reshape(-1, 3).mean(0))
     np.testing.assert_allclose(total, 1.0, atol=1e-6)      # every ray served by one trace
     assert shares[..., 0].mean() > 0.25                    # the screen serves a real part
-    print("room indirect on/off:", on.mean(), off.mean())
-    assert abs(on.mean() - off.mean()) <= 0.02 * off.mean()
-    assert (np.abs(on - off) <= 0.1 * off).mean() >= 0.95
+    colour = _colour(tmp_path, "room")
+    print("room indirect on (cache, colour)/off:", on.mean(), colour.mean(), off.mean(),
+          "pixels within 2%:", (np.abs(on - off) <= 0.02 * off).mean())
+    for x in (on, colour):
+        assert abs(x.mean() - off.mean()) <= 0.02 * off.mean()
+        assert (np.abs(x - off) <= 0.1 * off).mean() >= 0.95
+    # a hit's light from the surface cache: the SDF trace's own light, pixel by pixel
+    assert abs(on.mean() - off.mean()) <= 0.005 * off.mean()
+    assert (np.abs(on - off) <= 0.02 * off).mean() >= 0.95
 
     on, off, shares, hit = _load(tmp_path, "floor")
     assert hit.mean() > 0.3
@@ -158,7 +173,10 @@ def test_screen_trace(tmp_path):
     print("wall: floor shares", shares[floor].mean(0), "indirect on/off:", on[floor].mean(),
           off[floor].mean())
     assert shares[floor][:, 0].mean() > 0.05               # the wall is found on screen
-    assert abs(on[floor].mean() - off[floor].mean()) <= 0.05 * off[floor].mean()
+    colour = _colour(tmp_path, "wall")
+    print("wall: floor indirect colour:", colour[floor].mean())
+    for x in (on, colour):
+        assert abs(x[floor].mean() - off[floor].mean()) <= 0.05 * off[floor].mean()
 
     on = np.load(tmp_path / "roof_True_indirect.npy")[..., :3].mean(-1)
     off = np.load(tmp_path / "roof_False_indirect.npy")[..., :3].mean(-1)
