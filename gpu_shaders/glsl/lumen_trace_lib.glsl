@@ -58,7 +58,7 @@ vec3 lumen_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out int kind)
     float t_free;
     ivec2 hit_px;
     float ts = screen_trace(screen_view_proj(), screen_cam.xyz, o, dir, tmax, screen_steps,
-                            screen_cam.w, true, t_free, hit_px);
+                            screen_cam.w, 2.0 * gi_thin_margin(), true, t_free, hit_px);
     float guard = screen_hidden_guard(o, dir, ts >= 0.0 ? ts : t_free);
     if (guard < (ts >= 0.0 ? ts : t_free)) {     /* a hidden object first: the SDFs from there */
       ts = -1.0;

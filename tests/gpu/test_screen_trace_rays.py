@@ -83,7 +83,8 @@ void main()
   float cone_tan = stop ? d.w - 10.0 : d.w;
   float t_free;
   ivec2 hit_px;
-  float t = screen_trace(view_proj, cam.xyz, r.xyz, d.xyz, r.w, 50, cam.w, stop, t_free, hit_px);
+  float t = screen_trace(view_proj, cam.xyz, r.xyz, d.xyz, r.w, 50, cam.w, 0.0, stop, t_free,
+                           hit_px);
   vec3 c = vec3(0.0);
   if (t >= 0.0) {
     c = screen_cone(colour, view_proj, cam.xyz, cone_tan, r.xyz + d.xyz * t, t, hit_px);
