@@ -41,8 +41,8 @@ import numpy as np
 
 from . import compute
 from .frame_noise import FrameNoise
-from .gi_settings import (MAX_BOUNCES, MIN_RENDER_FRAMES, RENDER_SC_MIN_TILES, GISettings,
-                          bounces_converged)
+from .gi_settings import (MAX_BOUNCES, MIN_RENDER_FRAMES, RENDER_SC_MIN_TILES, SEED_FRAMES,
+                          GISettings, bounces_converged)
 from .screen_probes import VIEWPORT_FALLBACK_BUDGET
 from .surface_cache_pages import TILE
 
@@ -134,7 +134,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         if rcache is not None:
             rcache.reset = True                  # every probe is traced again
     if final:
-        state.gi_frame = 0                       # the same jitter sequence every render
+        # the same jitter sequences every render, a seed's own (SEED_FRAMES apart)
+        state.gi_frame = int(gi.seed) * SEED_FRAMES
         cache.pages.set_geometry(None)           # tiles' world boxes: objects may have moved
     state.gi_view_key, state.gi_sky = view_key, sky.key
     objects_changed = bool(changes & {"atlas", "objects"})

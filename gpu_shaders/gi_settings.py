@@ -47,6 +47,8 @@ MIN_PROBES_ACROSS = 16             # screen probes across an image's shorter sid
 MIN_PROBE_RES = 8                  # octahedral texels per side a halved-tile probe keeps, at least
 MIN_RENDER_FRAMES = 4              # F12 frames averaged before the noise threshold may end it
 MAX_BOUNCES = 16                   # F12 bounces at most (the scene's Bounces setting's maximum)
+SEED_FRAMES = 4096                 # F12: GI frames between two seeds' jitter sequences (more than
+                                   # any render's iterations)
 RENDER_SC_MIN_TILES = 256          # F12's tile cap (render_sc_texels) never goes below this
 VIEWPORT_SPLIT = 4                 # the viewport's GISettings.split by default (1, 4 or 16;
                                    # the scene's viewport_split, Viewport > Spread over)
@@ -65,6 +67,8 @@ class GISettings:
                                    # mean's relative noise is below this (frame_noise.py; 0: off;
                                    # Cycles' adaptive sampling default)
     aa_samples: int = 32           # F12: jittered G-buffers averaged (antialias.py; 1: off)
+    seed: int = 0                  # F12: which jitter sequences its GI frames take (Cycles' Seed:
+                                   # renders differ only in noise; bench/quality.py's noise level)
     probe_tile: int = 16
     probe_res: int = 8
     gsdf_n: int = 48
@@ -243,6 +247,7 @@ def from_scene(engine_settings, viewport: bool = False) -> GISettings:
                     probe_importance=bool(getattr(s, "probe_importance", d.probe_importance)),
                     converge_bounces=bool(getattr(s, "converge_bounces", d.converge_bounces)),
                     noise_threshold=float(getattr(s, "noise_threshold", d.noise_threshold)),
+                    seed=int(getattr(s, "seed", d.seed)),
                     **extra)
     if out.split > 1 and "sc_tiles" not in extra:   # the preset's budget, spread as the rest
         out = replace(out, sc_tiles=max(out.sc_tiles // out.split, 1))

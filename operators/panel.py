@@ -213,6 +213,7 @@ class RENDER_PT_lumen_gi_render(_RenderPanel, bpy.types.Panel):
         sub.prop(s, "converge_bounces")
         sub.prop(s, "render_frames", text="Frames")
         sub.prop(s, "noise_threshold")
+        sub.prop(s, "seed")
         col.prop(s, "aa_samples", text="Anti-Aliasing")
 
 

@@ -163,6 +163,11 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
                     "as Cycles' adaptive sampling does. Lower is cleaner and slower; 0 always "
                     "renders every frame",
         default=GI.noise_threshold, min=0.0, max=1.0, precision=4, step=0.1)
+    seed: IntProperty(
+        name="Seed",
+        description="Final render: which random patterns the bounced light is sampled with. "
+                    "Renders with different seeds differ only in their noise",
+        default=GI.seed, min=0, max=1 << 16)
     aa_samples: IntProperty(
         name="Anti-Aliasing Samples",
         description="Final render: the image is averaged over this many slightly moved "
