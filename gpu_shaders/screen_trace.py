@@ -3,30 +3,33 @@ is first walked on the screen, through the HZB (at most 50 cells), and only what
 resolve goes on to the mesh SDFs (to 1.8 m), the global SDF and the sky:
 
     hzb.depth_pyramid   this frame's HZB (MIN of window depths), once per frame
-    screen colour       the radiance a screen hit reads, per G-buffer pixel: the composite of
-                        this frame's direct light and the last gather's indirect irradiance (the
-                        probes' history; the lecture reads last frame's scene colour: here on this
-                        frame's G-buffer, nothing to reproject). A gather with no history (the
-                        first of an F12 render, the first after the view moved) has no screen
-                        colour and traces on the SDFs alone: a surface-cache lookup per pixel
-                        instead was measured at 1.2 s a pass at 128x128, 3x what the screen
-                        saved the probe trace
-    screen_trace_lib    per ray: a hit on screen ends the ray there, reading the screen colour
-                        averaged over the ray's cone on the hit's own surface (screen_cone: a
-                        probe texel's solid angle, 3x3 edge-aware taps: one pixel of one gather
-                        was as noisy as that gather); a ray that passes behind what a pixel
-                        shows without hitting it ends there (SCREEN_BEHIND: what is behind is
-                        unknown; walking on found surfaces past a thin wall's edge, `thin`
-                        leaked 1.98%, and spent the 50 steps a pixel at a time); otherwise the
-                        SDF trace starts where the depth buffer stops vouching that the ray is
-                        empty (t_free), not at the ray's origin: the saving on rays that leave
-                        the screen
+    screen_trace_lib    per ray: where it hits what the camera sees, and how far it is known to
+                        be empty (t_free: every cell it crossed, it crossed in front of what the
+                        cell shows; at a pixel, at least a voxel in front of its surface and not
+                        within the thickness behind a neighbour's plane: the depth buffer shows
+                        neither what lies within a voxel of a surface (a panel 5 cm under a
+                        ceiling, seen edge-on) nor the sub-pixel rim of a neighbour's surface).
+                        A ray that passes behind what a pixel shows without hitting it ends
+                        there (SCREEN_BEHIND: what is behind is unknown; walking on found
+                        surfaces past a thin wall's edge, `thin` leaked 1.98%)
+    the hit's light     HITS "CACHE" (default): the SDF trace goes on from t_free, a step or two
+                        before the hit, and reads the surface cache there as any SDF hit does:
+                        the light of the trace without the screen, found sooner. "COLOUR" (the
+                        lecture's): the screen colour, this frame's direct light and the last
+                        gather's indirect irradiance composited per pixel, averaged over the
+                        ray's cone on the hit's surface (screen_cone); a gather with no history
+                        has none and traces on the SDFs alone. Measured (bench/quality.py, 128
+                        px, 512 spp): COLOUR's relMSE is above the trace without the screen on
+                        every scene (cornell 0.0104 / 0.0074, glow 0.0334 / 0.0209): the probes'
+                        indirect light it carries is 5.8% below the cache's and noisier
+    otherwise           the SDF trace starts at t_free, not at the ray's origin: the saving on
+                        rays that leave the screen or pass behind something
 
 Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step evaluates every
-object near the point; the screen resolves rays that hit what the camera sees (most of a room's
-rays) and shortens the rest. Why it is no less right: a screen hit is the visible surface (no
-leak: the depth buffer is the nearest surface) lit at pixel resolution; what the screen does not
-show (behind, off screen) is still traced.
+object near the point; the screen finds the empty part of most of a room's rays. Why it is no
+less right: what it skips is what the depth buffer shows empty (the nearest surfaces, a voxel's
+margin and the neighbours' rims kept); what the screen does not show (behind, off screen) is
+still traced.
 Objects hidden from the camera (visible_camera off: bench/quality.py's `thin` has its roof so)
 are in the SDFs but not in the depth buffer, which therefore vouches for the space they fill:
 before a screen result is used, the ray is sphere-traced against those objects alone (their

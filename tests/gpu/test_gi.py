@@ -144,3 +144,27 @@ def test_ray_lod_keeps_the_closed_room_series(tmp_path):
     print(lum.mean(), np.percentile(lum, [1, 5, 50, 95, 99]))
     assert abs(lum.mean() - expected) <= 0.03 * expected
     assert (np.abs(lum - expected) <= 0.1 * expected).mean() >= 0.9
+
+
+SEEDS = COMMON + ROOM_SCENE + """
+np.save("seed0.npy", R["indirect"])
+bpy.context.scene.lumen.engine.seed = 1
+bpy.ops.render.render()
+R = engine.LAST_RENDER
+assert "error" not in R, R.get("traceback", R.get("error"))
+np.save("seed1.npy", R["indirect"])
+emit(ok=True)
+"""
+
+
+def test_seed_changes_only_the_noise(tmp_path):
+    """Seed (Cycles' Seed): another seed's F12 takes other jitter sequences, so its image differs
+    pixel by pixel, by noise only: the closed room's indirect light has the same mean."""
+    run = run_python(SEEDS, tmp_path, timeout=300)
+    assert run.returncode == 0, run.explain()
+    a = np.load(tmp_path / "seed0.npy")[..., :3].mean(-1)
+    b = np.load(tmp_path / "seed1.npy")[..., :3].mean(-1)
+    diff = np.abs(a - b)
+    print("seed 0 / 1 mean:", a.mean(), b.mean(), "max |diff|:", diff.max(), "mean:", diff.mean())
+    assert diff.max() > 1e-4 * a.mean()              # other sequences, another noise
+    assert abs(a.mean() - b.mean()) <= 0.01 * a.mean()
