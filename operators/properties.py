@@ -199,8 +199,8 @@ class LumenEngineSettings(bpy.types.PropertyGroup):
         name="Screen Trace",
         description="Rays first look for what they hit in the image on screen, and only what "
                     "they do not find there is traced through the scene's distance fields. "
-                    "Experimental: off by default, it made a Cornell box's bounced light 9% "
-                    "darker and saved no render time here",
+                    "Experimental: off by default, it looks the same as without (within 1.5% "
+                    "on our test scenes) but saved no render time on the CPU renderer we test on",
         default=GI.screen_trace)
     screen_hit: EnumProperty(
         name="Screen Hit Light",
