@@ -232,10 +232,11 @@ def test_panel_draws_existing_properties_and_operators(blender):
                                                       "preview_pixel_size"],
                       "RENDER_PT_lumen_gi_render": ["render_quality", "bounces", "converge_bounces",
                                                     "render_frames", "noise_threshold",
-                                                    "aa_samples"],
+                                                    "seed", "aa_samples"],
                       "RENDER_PT_lumen_gi_method": ["gi_method"],
-                      "RENDER_PT_lumen_gi_lumen": ["gi_gather", "screen_trace", "adaptive_probes",
-                                                   "probe_importance", "radiance_cache"],  # default method
+                      "RENDER_PT_lumen_gi_lumen": ["gi_gather", "screen_trace", "screen_hit",
+                                                   "adaptive_probes", "probe_importance",
+                                                   "radiance_cache"],  # default method
                       "RENDER_PT_lumen_gi_debug": ["debug_view"]}, render
     memory = [n for k, n in r["render"]["RENDER_PT_lumen_gi_debug"] if k == "label"]
     assert memory == ["GPU Mesh SDFs", "120 B", "GPU Cards", "10 B", "GPU Sky", "5 B",
