@@ -377,6 +377,12 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         else:
             aa_info = dict(aa_progress=(0, gi_cfg.aa_samples))
     t5 = time.perf_counter()
+    # the viewport has nothing left to refine (its GI, direct light and anti-aliasing all done):
+    # view_draw draws this Combined again until something changes (SceneState.still)
+    done = (not final and view == "COMBINED" and gi_info.get("gi_converged", True)
+            and state.direct.converged
+            and (aa_info["aa_progress"] is None
+                 or aa_info["aa_progress"][0] >= aa_info["aa_progress"][1]))
     MEMORY[scene.name] = dict(state.stats(), **screen_bytes(width, height, gi_cfg.enabled),
                               **gi_methods.stats(state))
     LAST_RENDER.update(
@@ -391,11 +397,13 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
         direct_part=out.get("part", (0, direct_light.LIGHT_SAMPLES)),
-        gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, **gi_info, **aa_info)
+        gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, reused_frame=False, **gi_info,
+        **aa_info)
     if stale:
         LAST_RENDER["notes"].append(staleness.summary(stale) + ": drawn, but their light and "
                                     "shadows are the bake's; press Bake")
     result = Frame(textures, None, width, height)
+    result.converged = bool(done)
     if KEEP_IMAGES or view != "COMBINED":
         images = dict(position=result.read(g["position"]), normal=result.read(g["normal"]),
                       albedo=result.read(g["albedo"]), emission=result.read(g["emission"]),
@@ -421,6 +429,7 @@ class Frame:
     def __init__(self, textures: dict, shown=None, width: int = 0, height: int = 0):
         self.textures, self.shown = textures, shown
         self.width, self.height = width, height
+        self.converged = False       # the viewport's: nothing left to refine (frame())
 
     def read(self, tex) -> np.ndarray:
         from .resources import read_texture
@@ -629,11 +638,27 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         rd = context.region_data
         if getattr(self, "_state", None) is None:
             self._state = SceneState()
+        st = self._state
+        view_proj = np.array(rd.perspective_matrix, np.float64)
+        clip_end = float(context.space_data.clip_end)
+        view = debug_view(scene)
+
+        def still_key():        # what a converged frame was drawn for (epoch: any depsgraph update)
+            return (view_proj.tobytes(), fw, fh, ps, clip_end, view, st.epoch)
+
+        if st.still is not None and st.still[0] == still_key():
+            # converged and nothing changed since: its Combined again, no pass run (a still
+            # viewport's redraws, from the UI around it, cost a refining frame before)
+            tex, stale = st.still[1], st.still[2]
+            LAST_RENDER.update(pixel_size=ps, reused_frame=True, direct_part=None)
+            self._draw_texture(scene, tex, w, h)
+            if stale:
+                self._draw_stale(stale, w, h, 0)
+            return
         try:
-            fr = frame(self._state, depsgraph, scene, np.array(rd.perspective_matrix, np.float64),
+            fr = frame(st, depsgraph, scene, view_proj,
                        np.array(rd.view_matrix.inverted().translation, np.float64),
-                       float(context.space_data.clip_end), fw, fh, debug_view(scene),
-                       final=False, pixel_size=ps)
+                       clip_end, fw, fh, view, final=False, pixel_size=ps)
         except Exception as exc:
             LAST_RENDER["error"] = str(exc)
             draw_message(f"Lumen GI: {exc}", w, h)
@@ -642,10 +667,29 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         aa = LAST_RENDER.get("aa_progress")
         if LAST_RENDER.get("gi_converged") is False or (aa is not None and aa[0] < aa[1]):
             self.tag_redraw()              # progressive: keep accumulating GI frames, AA samples
+        st.still = ((still_key(), fr.textures["Combined"], list(LAST_RENDER.get("stale") or []))
+                    if fr.converged and fr.shown is None else None)
         if fr.shown is not None:           # a debug view's image (computed on the CPU)
             tex = gpu.types.GPUTexture((fw, fh), format='RGBA16F', data=float_buffer(fr.shown))
         else:
             tex = fr.textures["Combined"]
+        self._draw_texture(scene, tex, w, h)
+        progress = LAST_RENDER.get("gi_progress") or (0, 0)
+        if aa is not None:                 # GI frames first, then the anti-aliasing samples
+            progress = (progress[0] + aa[0], progress[1] + aa[1])
+        line = 0
+        if progress[0] < progress[1]:
+            draw_message(f"Lumen GI: refining {progress[0]}/{progress[1]}", w, h)
+            line = 1
+        stale = LAST_RENDER.get("stale")
+        if stale:
+            self._draw_stale(stale, w, h, line)
+
+    def _draw_texture(self, scene, tex, w, h):
+        """`tex` over the region (w x h px) with the display colour transform."""
+        import gpu
+        from gpu_extras.batch import batch_for_shader
+
         shader = gpu.shader.from_builtin('IMAGE')
         batch = batch_for_shader(shader, 'TRI_FAN', {
             "pos": ((0, 0), (w, 0), (w, h), (0, h)),
@@ -656,17 +700,11 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         batch.draw(shader)
         self.unbind_display_space_shader()
         gpu.state.blend_set('NONE')
-        progress = LAST_RENDER.get("gi_progress") or (0, 0)
-        if aa is not None:                 # GI frames first, then the anti-aliasing samples
-            progress = (progress[0] + aa[0], progress[1] + aa[1])
-        line = 0
-        if progress[0] < progress[1]:
-            draw_message(f"Lumen GI: refining {progress[0]}/{progress[1]}", w, h)
-            line = 1
-        stale = LAST_RENDER.get("stale")
-        if stale:
-            draw_message(f"Lumen GI: {len(stale)} object{'s' if len(stale) != 1 else ''} changed "
-                         f"since the bake: press Bake", w, h, line)
+
+    @staticmethod
+    def _draw_stale(stale, w, h, line):
+        draw_message(f"Lumen GI: {len(stale)} object{'s' if len(stale) != 1 else ''} changed "
+                     f"since the bake: press Bake", w, h, line)
 
 
 def register():

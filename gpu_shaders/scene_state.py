@@ -99,6 +99,8 @@ class SceneState:
                                      # time per redraw (antialias.Progressive)
         self.epoch = 0               # depsgraph updates seen (engine.view_update) and syncs
                                      # with changes: what the progressive direct light keys on
+        self.still = None            # engine.view_draw: (key, Combined, stale) of a converged
+                                     # viewport frame, drawn again until the key changes
         self.bake = None
         self.extraction = None       # operators.extract.ExtractionCache (engine.frame makes it)
         self.mesh_batches = None     # mesh_batches.MeshBatches: the G-buffer's meshes and

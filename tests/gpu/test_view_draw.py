@@ -52,7 +52,7 @@ def state(i):
     assert "error" not in R, R.get("error")
     return dict(converged=R.get("gi_converged"), width=R["width"], height=R["height"],
                 quality=R["gi_settings"]["quality"], pixel_size=R.get("pixel_size"),
-                aa=R.get("aa_progress"))
+                aa=R.get("aa_progress"), reused=R.get("reused_frame"))
 
 results = {{}}
 for label, ps, redraws in (("full", "1", 50), ("half", "2", 2)):
@@ -69,13 +69,14 @@ scene.render.preview_pixel_size = "1"
 moved = {{}}
 def edit(i):
     R = engine.LAST_RENDER
-    moved[i] = dict(changes=R["changes"], albedo=R["albedo"].copy())
+    moved[i] = dict(changes=R["changes"], albedo=R["albedo"].copy(), reused=R["reused_frame"])
     if i == 0:
         box.location.x += 1.2
     elif i == 1:
         sun.rotation_euler = (1.0, -0.4, 0.0)
 viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 3, edit)
 light_changes = moved[2]["changes"]
+moved_reused = [moved[i]["reused"] for i in sorted(moved)]
 moved = moved[1]
 np.save("moved_albedo.npy", moved["albedo"])
 # a budget of one tile per frame: the update-heat view shows fresh and not-yet-relit tiles
@@ -85,6 +86,7 @@ out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 6,
                            lambda i: engine.LAST_RENDER["gi_sc_tiles"])
 np.save("heat.npy", engine.LAST_RENDER["shown"])
 emit(results=results, moved_changes=moved["changes"], light_changes=light_changes,
+     moved_reused=moved_reused,
      heat_tiles=out["after"])
 """
 
@@ -113,6 +115,14 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
     assert err < 0.01, f"converged viewport against F12: relMSE {err:.4f}"
     drawn = np.load(tmp_path / "full_drawn.npy")
     assert drawn.shape[:2] == (64, 64) and (drawn[..., 3] > 0.5).mean() > 0.99
+    # once done, a redraw of the unchanged view draws that image again and runs no pass: only
+    # redraws after one that had converged with every anti-aliasing sample are reused
+    reused = [i for i, d in enumerate(full) if d["reused"]]
+    first_done = next(i for i, d in enumerate(full) if d["converged"] and d["aa"] == [8, 8])
+    print("done at redraw", first_done, "reused:", reused)
+    assert reused == list(range(first_done + 1, len(full))), (first_done, reused)
+    # an edit is never drawn from before it
+    assert not any(res.result["moved_reused"]), res.result["moved_reused"]
 
     # moving the box re-uploads the object table and moves its red pixels to the right;
     # turning the sun re-uploads the lights
