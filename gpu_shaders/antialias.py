@@ -230,7 +230,12 @@ class Progressive:
     the last refining redraw's GI time, so an anti-aliasing redraw costs about what a refining
     one did plus that): the 32 samples end in a few redraws, not in 32 (the open yard at 128
     px: its GI done at ~180 redraws, its anti-aliasing past 200; now done at 182). Measured
-    at 64 px in tests/gpu/test_view_draw.py: 8 samples in 6 redraws (2, 2, 1, 1, 1, 1)."""
+    at 64 px in tests/gpu/test_view_draw.py: 8 samples in 6 redraws (2, 2, 1, 1, 1, 1).
+    At most MAX_PER_REDRAW a redraw: the seconds are the host's, which on a GPU measure only
+    the submission, so without a cap a GPU would get all 32 samples in one redraw (one stall
+    of 32 samples' work where the viewport should stay responsive)."""
+
+    MAX_PER_REDRAW = 4
 
     def __init__(self):
         self.key, self.acc = None, None
@@ -250,7 +255,8 @@ class Progressive:
         marks = jitters(samples, filter_size)
         t0 = time.perf_counter()
         last = 0.0
-        while self.acc.count < len(marks):
+        end = min(len(marks), self.acc.count + max(int(self.MAX_PER_REDRAW), 1))
+        while self.acc.count < end:
             t = time.perf_counter()
             add_sample(self.acc, state, base, e_indirect, lights, sky, cam_pos, view_proj,
                        marks[self.acc.count], sky_cones, self.acc.count, samples)

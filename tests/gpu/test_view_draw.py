@@ -63,6 +63,13 @@ for label, ps, redraws in (("full", "1", 50), ("half", "2", 2)):
     np.save(label + "_albedo.npy", engine.LAST_RENDER["albedo"])
     np.save(label + "_drawn.npy", out["drawn"])
 np.save("f12.npy", f12)
+# as on a GPU, where the host's seconds are only the submission: an unbounded time budget
+from lumen_gi.gpu_shaders import antialias
+step = antialias.Progressive.step
+antialias.Progressive.step = lambda self, *a, **k: step(self, *a, **dict(k, seconds=1e9))
+out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 50, state)
+antialias.Progressive.step = step
+results["gpu_budget"] = out["after"]
 # a moved object and a moved light reach the next redraw of the same viewport (one engine
 # instance, one GPU state: each redraw re-uploads only what changed)
 scene.render.preview_pixel_size = "1"
@@ -117,6 +124,10 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
     assert drawn.shape[:2] == (64, 64) and (drawn[..., 3] > 0.5).mean() > 0.99
     # once done, a redraw of the unchanged view draws that image again and runs no pass: only
     # redraws after one that had converged with every anti-aliasing sample are reused
+    # with a budget that never runs out (a GPU's), at most MAX_PER_REDRAW (4) samples a redraw
+    gpu_aa = [d["aa"][0] for d in res.result["results"]["gpu_budget"] if d["aa"][0] > 0]
+    print("anti-aliasing samples per redraw, unbounded budget:", gpu_aa)
+    assert gpu_aa[0] == 4 and 8 in gpu_aa and gpu_aa.index(8) == 1, gpu_aa
     reused = [i for i, d in enumerate(full) if d["reused"]]
     first_done = next(i for i, d in enumerate(full) if d["converged"] and d["aa"] == [8, 8])
     print("done at redraw", first_done, "reused:", reused)
