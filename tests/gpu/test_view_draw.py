@@ -1,8 +1,9 @@
 """The viewport path headless: LumenGIRenderEngine.view_draw called inside a render() that holds
 a GPU context, with a GPUOffScreen bound and a duck-typed context (region, region_data,
 space_data). Checks that redraws of a still view converge to the F12 image of the same camera (its
-anti-aliasing samples included, one per redraw once the rest has converged),
-that Blender's viewport Pixel Size renders the frame at 1/ps per side and still fills the region,
+anti-aliasing samples included, several a redraw once the rest has converged, at most 4 even
+with a budget that never runs out), that a converged view's further redraws run no pass until
+something changes, that Blender's viewport Pixel Size renders the frame at 1/ps per side and still fills the region,
 and that the viewport uses its own GI quality."""
 import sys
 from pathlib import Path
@@ -122,12 +123,12 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
     assert err < 0.01, f"converged viewport against F12: relMSE {err:.4f}"
     drawn = np.load(tmp_path / "full_drawn.npy")
     assert drawn.shape[:2] == (64, 64) and (drawn[..., 3] > 0.5).mean() > 0.99
-    # once done, a redraw of the unchanged view draws that image again and runs no pass: only
-    # redraws after one that had converged with every anti-aliasing sample are reused
     # with a budget that never runs out (a GPU's), at most MAX_PER_REDRAW (4) samples a redraw
     gpu_aa = [d["aa"][0] for d in res.result["results"]["gpu_budget"] if d["aa"][0] > 0]
     print("anti-aliasing samples per redraw, unbounded budget:", gpu_aa)
     assert gpu_aa[0] == 4 and 8 in gpu_aa and gpu_aa.index(8) == 1, gpu_aa
+    # once done, a redraw of the unchanged view draws that image again and runs no pass: only
+    # redraws after one that had converged with every anti-aliasing sample are reused
     reused = [i for i, d in enumerate(full) if d["reused"]]
     first_done = next(i for i, d in enumerate(full) if d["converged"] and d["aa"] == [8, 8])
     print("done at redraw", first_done, "reused:", reused)
