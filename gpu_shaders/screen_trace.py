@@ -70,7 +70,9 @@ class ScreenTrace:
                  thickness: float = 0.1, hidden=(), rays: int = 64, hit: str = "CACHE"):
         self.gbuf, self.width, self.height = gbuf, int(width), int(height)
         self.view_proj = np.asarray(view_proj, np.float64)
-        self.hit = hit if hit in HITS else "CACHE"
+        if hit not in HITS:
+            raise ValueError(f"Screen Hit Light {hit!r}: use one of {HITS}")
+        self.hit = hit
         self.camera = camera_texture(view_proj, ray_cone_tan(rays), self.hit == "CACHE")
         self.cam = compute.vec(cam_pos) + [float(thickness)]
         self.steps = int(steps)
