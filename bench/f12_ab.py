@@ -12,6 +12,7 @@ Why: bench/glsl_ab.py times the viewport; an F12 optimisation must keep F12's im
 
     .venv/bin/python bench/f12_ab.py --b /tmp/variant [--a gpu_shaders/glsl] [--rounds 1]
                                      [--scenes cornell,window] [--size 128] [--setting FIELD=VALUE]
+                                     [--setting-both FIELD=VALUE]
 """
 from __future__ import annotations
 
@@ -77,7 +78,7 @@ def main():
     ap.add_argument("--scenes", default="cornell")
     ap.add_argument("--size", type=int, default=128)
     args = ap.parse_args()
-    folders, settings_b = glsl_ab.ab_versions(args)
+    folders, settings_b, both = glsl_ab.ab_versions(args)
 
     import demo
     import numpy as np
@@ -85,7 +86,7 @@ def main():
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
     engine.KEEP_IMAGES = True
-    versions = glsl_ab.Versions(addon, settings_b)
+    versions = glsl_ab.Versions(addon, settings_b, both)
     for name in args.scenes.split(","):
         seconds, cpus, passes = [[], []], [[], []], [defaultdict(list), defaultdict(list)]
         images = [None, None]

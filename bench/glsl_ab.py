@@ -38,45 +38,57 @@ def ab_arguments(ap, rounds: int):
     ap.add_argument("--b", default=None, help="GLSL folder B (default: A)")
     ap.add_argument("--setting", action="append", default=[], metavar="FIELD=VALUE",
                     help="a GISettings field B renders with (int, float or 0/1)")
+    ap.add_argument("--setting-both", action="append", default=[], metavar="FIELD=VALUE",
+                    help="a GISettings field both A and B render with (e.g. to compare two "
+                         "versions of a pass that is off by default)")
     ap.add_argument("--rounds", type=int, default=rounds)
 
 
-def ab_versions(args) -> tuple:
-    """([GLSL folder A, B], {GISettings field: value} of B) from ab_arguments' options, checked."""
-    folders = [Path(args.a).resolve(), Path(args.b or args.a).resolve()]
-    settings_b = {}
-    for item in args.setting:
+def parse_settings(items) -> dict:
+    """{GISettings field: int or float} from FIELD=VALUE strings."""
+    out = {}
+    for item in items:
         field, _, value = item.partition("=")
-        settings_b[field] = float(value) if "." in value else int(value)
+        out[field] = float(value) if "." in value else int(value)
+    return out
+
+
+def ab_versions(args) -> tuple:
+    """([GLSL folder A, B], {GISettings field: value} of B, of both) from ab_arguments' options,
+    checked."""
+    folders = [Path(args.a).resolve(), Path(args.b or args.a).resolve()]
+    settings_b = parse_settings(args.setting)
     if folders[0] == folders[1] and not settings_b:
         raise SystemExit("nothing to compare: give --b or --setting")
     for f in folders:
         if not (f / "sdf_lib.glsl").is_file():
             raise SystemExit(f"{f}: not a copy of gpu_shaders/glsl (no sdf_lib.glsl)")
-    return folders, settings_b
+    return folders, settings_b, parse_settings(args.setting_both)
 
 
 class Versions:
     """Switches the loaded add-on between version A and B: the GLSL folder its resolver reads
-    (every compiled shader freed) and, for B, GISettings fields replaced in from_scene."""
+    (every compiled shader freed) and, for B (and for both: `both`), GISettings fields replaced
+    in from_scene."""
 
-    def __init__(self, addon, settings_b: dict):
+    def __init__(self, addon, settings_b: dict, both: dict | None = None):
         import dataclasses
 
         self.addon = addon
         self.include = importlib.import_module(f"{addon.__name__}.gpu_shaders.glsl_include")
         self.gi_settings = importlib.import_module(f"{addon.__name__}.gpu_shaders.gi_settings")
         self.original = self.gi_settings.from_scene
-        self.settings_b = settings_b
+        self.both = dict(both or {})
+        self.settings_b = {**self.both, **settings_b}
         fields = {f.name for f in dataclasses.fields(self.gi_settings.GISettings)}
-        for field in settings_b:
+        for field in self.settings_b:
             if field not in fields:
                 raise SystemExit(f"--setting {field}: not a GISettings field")
 
     def use(self, version: int, folder):
         import dataclasses
 
-        extra, original = (self.settings_b if version else {}), self.original
+        extra, original = (self.settings_b if version else self.both), self.original
         self.gi_settings.from_scene = (lambda s, viewport=False, extra=extra: dataclasses.replace(
             original(s, viewport), **extra))
         self.addon.gpu_shaders.free_shaders()
@@ -96,7 +108,7 @@ def main():
     ab_arguments(ap, rounds=2)
     ap.add_argument("--viewport", type=int, nargs=2, default=(640, 360), metavar=("W", "H"))
     args = ap.parse_args()
-    folders, settings_b = ab_versions(args)
+    folders, settings_b, both = ab_versions(args)
 
     import bpy
     import demo
@@ -106,7 +118,7 @@ def main():
 
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
-    versions = Versions(addon, settings_b)
+    versions = Versions(addon, settings_b, both)
     width, height = args.viewport
     results = [defaultdict(list), defaultdict(list)]
     with tempfile.TemporaryDirectory() as tmp:

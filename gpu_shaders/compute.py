@@ -347,3 +347,25 @@ def read(tex) -> np.ndarray:
 
 def vec(v, n=3):
     return [float(c) for c in np.asarray(v, np.float64).reshape(-1)[:n]]
+
+
+_COUNTER = None
+
+
+def read_counter(tex) -> int:
+    """The int in texel (0, 0) of an R32I texture (an atomic counter), read back: the size of a
+    dispatch over a list a pass built (Blender's gpu module has no indirect dispatch). An R32I
+    texture reads back as zeros (Blender 5.0), so a one-texel pass copies it to R32F first.
+    Waits for the GPU: on llvmpipe, which runs each dispatch as it is issued, nothing; on a GPU
+    the rest of the frame is issued once the passes before it are done."""
+    global _COUNTER
+    if _COUNTER is None:
+        _COUNTER = Pass("read_counter", source="""
+void main()
+{
+  imageStore(out_image, ivec2(0, 0), vec4(float(imageLoad(counter, ivec2(0, 0)).x)));
+}
+""", images=("out_image", ("counter", 'R32I', {'READ'})), group=(1, 1, 1))
+    out = texture((1, 1))
+    _COUNTER.run_groups(1, counter=tex, out_image=out)
+    return int(read(out).reshape(-1)[0])

@@ -65,13 +65,32 @@ RAYS = compute.Pass("screen_probe_rays",
                     images=(("out_image", 'R32F'), "probe_plan", "probe_prior"),
                     push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'probe_res'),
                           ('INT', 'frame'), ('INT', 'uniform_rows')))
-TRACE = compute.Pass("screen_probe_trace",
-                     samplers=("probe_info", "probe_normal", "probe_rays") + screen_trace.SAMPLERS,
-                     images=(("out_image", 'RGBA32F', {'READ', 'WRITE'}), ("rc_marks", 'R32F')),
-                     push=(screen_trace.PUSH[0], radiance_cache.CAMERA, ('VEC2', 'ray_jitter'),
-                           ('INT', 'probe_res'), ('FLOAT', 't_max'), ('INT', 'rc_frame'),
-                           screen_trace.PUSH[1], ('INT', 'texel_step'), ('IVEC2', 'texel_phase'),
-                           ('INT', 'texel_fill')))
+# the probe rays (screen_probe_trace_lib.glsl), one invocation per ray of a live probe (LIST:
+# the atlas's live slots, their count read back): without the screen trace one pass, TRACE; with
+# it SCREEN_TRACE (the screen first; the rays it does not resolve listed) then TRACE_LIST (those
+# on the SDFs, compacted: full work groups)
+LIST = compute.Pass("screen_probe_list", samplers=("probe_info",),
+                    images=(("probe_list", 'RGBA32F'), ("probe_counter", 'R32I', {'READ', 'WRITE'}),
+                            ("out_image", 'RGBA32F')),
+                    push=(('INT', 'probe_res'), ('INT', 'texel_step'), ('IVEC2', 'texel_phase')))
+RAY_GROUP = 64
+TRACE_SAMPLERS = ("probe_info", "probe_normal", "probe_rays", "probe_list")
+TRACE_IMAGES = (("out_image", 'RGBA32F', {'READ', 'WRITE'}), ("rc_marks", 'R32F'))
+TRACE_PUSH = (radiance_cache.CAMERA, ('VEC2', 'ray_jitter'), ('INT', 'probe_res'),
+              ('FLOAT', 't_max'), ('INT', 'rc_frame'), ('INT', 'texel_step'),
+              ('IVEC2', 'texel_phase'), ('INT', 'texel_fill'), ('INT', 'probe_count'))
+TRACE = compute.Pass("screen_probe_trace", samplers=TRACE_SAMPLERS, images=TRACE_IMAGES,
+                     push=TRACE_PUSH, group=(RAY_GROUP, 1, 1))
+SCREEN_TRACE = compute.Pass("screen_probe_screen_trace",
+                            samplers=TRACE_SAMPLERS + screen_trace.SAMPLERS,
+                            images=TRACE_IMAGES + (("ray_list", 'RGBA32F', {'WRITE'}),
+                                                   ("ray_counter", 'R32I', {'READ', 'WRITE'})),
+                            push=screen_trace.PUSH[:1] + TRACE_PUSH + screen_trace.PUSH[1:],
+                            group=(RAY_GROUP, 1, 1))
+TRACE_LIST = compute.Pass("screen_probe_trace_list", samplers=TRACE_SAMPLERS,
+                          images=TRACE_IMAGES + (("ray_list", 'RGBA32F', {'READ'}),
+                                                 ("ray_counter", 'R32I', {'READ'})),
+                          push=TRACE_PUSH, group=(RAY_GROUP, 1, 1))
 COMPOSE = compute.Pass("screen_probe_compose",
                        samplers=("probe_traced", "probe_plan", "probe_prior"),
                        images=("out_image", "probe_history_out"), push=(('INT', 'probe_res'),))
@@ -213,14 +232,37 @@ class ScreenProbes:
                 self.split_radiance = compute.texture((aw * r, ah * r))
             tex["radiance"] = self.split_radiance
         tracers = dict(scene=resources, cache=cache, gsdf=gsdf, sky=sky, voxels=voxels)
-        TRACE.run((aw * r // step, ah * r // step), **tracers, probe_info=tex["info"],
-                  texel_step=step, texel_phase=split_phase_pixel(split_frame % split, step),
-                  texel_fill=int(fill),
-                  probe_normal=tex["normal"], probe_rays=tex["rays"], probe_res=r,
-                  ray_jitter=ray_j, t_max=float(t_max), out_image=tex["radiance"],
-                  **(screen.inputs() if screen is not None else screen_trace.off_inputs(gbuf)),
-                  **(rcache.trace_inputs(cam_pos, frame) if rcache is not None
-                     else radiance_cache.trace_off()))
+        phase = split_phase_pixel(split_frame % split, step)
+        if "probe_list" not in tex or (tex["probe_list"].width, tex["probe_list"].height) != (aw, ah):
+            tex["probe_list"] = compute.texture((aw, ah))
+            tex["probe_counter"] = compute.texture((1, 1), 'R32I')
+        tex["probe_counter"].clear(format='INT', value=(0,))
+        LIST.run((aw, ah), probe_info=tex["info"], probe_res=r, texel_step=step,
+                 texel_phase=phase, probe_list=tex["probe_list"],
+                 probe_counter=tex["probe_counter"], out_image=tex["radiance"])
+        live = compute.read_counter(tex["probe_counter"])     # the dispatch's size: a sync
+        rays_per = (r // step) ** 2
+        rays = dict(tracers, probe_info=tex["info"], probe_normal=tex["normal"],
+                    probe_rays=tex["rays"], probe_list=tex["probe_list"], probe_count=live,
+                    texel_step=step, texel_phase=phase, texel_fill=int(fill), probe_res=r,
+                    ray_jitter=ray_j, t_max=float(t_max), out_image=tex["radiance"],
+                    **(rcache.trace_inputs(cam_pos, frame) if rcache is not None
+                       else radiance_cache.trace_off()))
+        screen_on = screen is not None and screen.inputs()["screen_steps"] > 0
+        if live and not screen_on:
+            TRACE.run(live * rays_per, **rays)
+        elif live:
+            if "ray_list" not in tex or tex["ray_list"].width * tex["ray_list"].height \
+                    < live * rays_per:
+                tex["ray_list"] = compute.texture((r * aw // step, r * ah // step))
+                tex["ray_counter"] = compute.texture((1, 1), 'R32I')
+            tex["ray_counter"].clear(format='INT', value=(0,))
+            SCREEN_TRACE.run(live * rays_per, **rays, **screen.inputs(),
+                             ray_list=tex["ray_list"], ray_counter=tex["ray_counter"])
+            listed = compute.read_counter(tex["ray_counter"])
+            if listed:
+                TRACE_LIST.run(listed, **rays, ray_list=tex["ray_list"],
+                               ray_counter=tex["ray_counter"])
         if rcache is not None:    # the far field of the rays that met nothing within ~2 m
             rcache.update(resources, gsdf, cache, sky, voxels, cam_pos, frame, t_max, rc_budget,
                           rc_blend, rc_retrace)
@@ -263,10 +305,15 @@ class ScreenProbes:
                       probe_tile=self.tile, uniform_rows=gh if adaptive else 0,
                       out_image=tex["integrated"], fb_list=tex["fb_list"],
                       fb_counter=tex["fb_counter"])
-        # the pixels integrate listed: their own rays, in full work groups
+        # the pixels integrate listed: their own rays, in full work groups, and only theirs
+        # (their count read back: llvmpipe runs an invocation of a tracing shader that returns
+        # at once nearly as slowly as one that traces, screen_probe_list.comp.glsl)
         # its budget: the uniform probes' rays of this redraw (a list of thousands of pixels
         # among many small objects cost 4x a whole viewport frame at 16 rays each)
-        FALLBACK.run(lw * lh, **tracers, frame=int(frame), t_max=float(t_max),
+        listed = compute.read_counter(tex["fb_counter"])
+        if not listed:
+            return tex["integrated"]
+        FALLBACK.run(listed, **tracers, frame=int(frame), t_max=float(t_max),
                      fb_budget=int((FALLBACK_BUDGET if fallback_budget is None else fallback_budget)
                                    * gw * gh * r * r) // (step * step),
                      fb_turn=int(frame) // split,        # a pixel's turns (the split's)

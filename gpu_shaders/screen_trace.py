@@ -156,12 +156,3 @@ def hidden_texture(rows):
     if not len(r):
         r = np.full(1, -1.0, np.float32)
     return gpu.types.GPUTexture((len(r), 1), format='R32F', data=float_buffer(r.reshape(1, -1)))
-
-
-def off_inputs(gbuf: dict) -> dict:
-    """ScreenTrace.inputs when the screen trace is off (steps 0: never read)."""
-    dummy = compute.texture((1, 1))
-    g = gbuf["textures"]
-    return dict(gbuf_position=g["position"], gbuf_normal=g["normal"], hzb=dummy,
-                screen_colour=dummy, screen_camera=dummy, screen_hidden=dummy,
-                screen_cam=(0.0, 0.0, 0.0, 0.0), screen_steps=0)

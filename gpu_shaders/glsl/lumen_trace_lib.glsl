@@ -4,16 +4,18 @@
 #include "screen_trace_lib.glsl"
 /* Lumen's ray (lecture 21, "Speed of Different Tracing Methods"; needs gi_trace_lib.glsl,
  * screen_trace_lib.glsl and screen_trace.py's SAMPLERS and PUSH): the screen first (HZB, at
- * most screen_steps cells; a hit reads screen_colour, filtered over the ray's cone:
- * screen_cone), then from where the depth buffer stops vouching for the ray (t_free) the mesh
- * SDFs, the global SDF and the sky (gi_radiance_from).
+ * most screen_steps cells; lumen_screen: a hit reads the surface cache or the screen colour),
+ * then from where the depth buffer stops vouching for the ray (t_free) the mesh SDFs, the
+ * global SDF and the sky (gi_radiance_from). The screen probes run the two parts as two passes
+ * with the unresolved rays compacted between them (screen_probe_screen_trace.comp.glsl);
+ * lumen_radiance runs both for one ray (the TRACE_METHOD debug view).
  * screen_steps 0: the SDFs from the origin.
  * Objects hidden from the camera (screen_hidden: their object-table rows, -1 for none) are not in
  * the depth buffer, which therefore vouches for space they fill: before a screen result is used,
  * the ray is sphere-traced against them alone up to where the screen trace ended; if it comes
  * within a voxel of one, the SDF trace takes over from just before (it sees every object).
- * kind: LUMEN_SKY (nothing hit before tmax), LUMEN_SCREEN, LUMEN_MESH (a hit before
- * GSDF_MESH_SPLIT), LUMEN_GLOBAL (after it). */
+ * kind: LUMEN_SKY (nothing hit before tmax), LUMEN_SCREEN (resolved by the screen), LUMEN_MESH
+ * (a hit before GSDF_MESH_SPLIT), LUMEN_GLOBAL (after it). */
 #define LUMEN_SKY 0
 #define LUMEN_SCREEN 1
 #define LUMEN_MESH 2
@@ -50,35 +52,65 @@ float screen_hidden_guard(vec3 o, vec3 dir, float t_end)
   return t_end;
 }
 
-vec3 lumen_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out int kind)
+/* The screen part of Lumen's ray: true where the screen resolves it, with its hit distance hit_t
+ * and light L; else false, and t_free is where the SDF trace goes on (0 where the screen vouches
+ * for nothing).
+ * A hit's light (screen_camera texel 4 y): 1 (HITS "CACHE") the surface cache's at the hit, as an
+ * SDF hit reads it: at the hit pixel's surface plane lifted half a voxel of the nearest object
+ * towards the ray's side (an SDF hit lies there; read on the plane, a wall thinner than a voxel
+ * would give either side's light); a hit on something the SDFs do not hold (no object within 2
+ * voxels) is left to the SDF trace. 0 (HITS "COLOUR") the screen colour over the ray's cone
+ * (screen_cone). */
+bool lumen_screen(vec3 o, vec3 dir, float tmax, out float t_free, out float hit_t, out vec3 L)
 {
-  float t_start = 0.0;
-  bool on_screen = false;
-  if (screen_steps > 0) {
-    float t_free;
-    ivec2 hit_px;
-    float ts = screen_trace(screen_view_proj(), screen_cam.xyz, o, dir, tmax, screen_steps,
-                            screen_cam.w, 2.0 * gi_thin_margin(), true, t_free, hit_px);
-    float guard = screen_hidden_guard(o, dir, ts >= 0.0 ? ts : t_free);
-    if (guard < (ts >= 0.0 ? ts : t_free)) {     /* a hidden object first: the SDFs from there */
-      ts = -1.0;
-      t_free = min(t_free, guard);
-    }
-    vec4 cone = texelFetch(screen_camera, ivec2(4, 0), 0);
-    if (ts >= 0.0 && cone.y < 0.5) {
-      hit_t = ts;
-      kind = LUMEN_SCREEN;
-      return screen_cone(screen_colour, screen_view_proj(), screen_cam.xyz, cone.x,
-                         o + dir * ts, ts, hit_px);
-    }
-    /* SCREEN_HIT_CACHE (cone.y 1): a hit's light is the surface cache's, as an SDF hit reads
-     * it: the SDFs go on from the hit pixel's entry (t_free), a step or two from the surface */
-    on_screen = ts >= 0.0;
-    t_start = t_free;
+  ivec2 hit_px;
+  L = vec3(0.0);
+  hit_t = tmax;
+  float ts = screen_trace(screen_view_proj(), screen_cam.xyz, o, dir, tmax, screen_steps,
+                          screen_cam.w, 2.0 * gi_thin_margin(), true, t_free, hit_px);
+  float guard = screen_hidden_guard(o, dir, ts >= 0.0 ? ts : t_free);
+  if (guard < (ts >= 0.0 ? ts : t_free)) {     /* a hidden object first: the SDFs from there */
+    t_free = min(t_free, guard);
+    return false;
+  }
+  if (ts < 0.0) {
+    return false;
+  }
+  vec4 cone = texelFetch(screen_camera, ivec2(4, 0), 0);
+  if (cone.y < 0.5) {
+    hit_t = ts;
+    L = screen_cone(screen_colour, screen_view_proj(), screen_cam.xyz, cone.x, o + dir * ts, ts,
+                    hit_px);
+    return true;
+  }
+  vec3 ps, ns;
+  gbuf_surface(hit_px, screen_cam.xyz, ps, ns);
+  vec3 p = o + dir * ts;
+  p -= ns * dot(p - ps, ns);                   /* onto the plane (a hit within the thickness) */
+  float h;
+  int obj;
+  float d = sdf_scene(p, h, obj);
+  if (obj < 0 || abs(d) > 2.0 * h) {
+    return false;
   }
   float w;
-  vec3 L = gi_radiance_from(o, dir, t_start, tmax, hit_t, w);
-  kind = on_screen ? LUMEN_SCREEN :
-         (hit_t >= tmax ? LUMEN_SKY : (hit_t < GSDF_MESH_SPLIT ? LUMEN_MESH : LUMEN_GLOBAL));
+  hit_t = ts;
+  L = sc_sample_world(obj, p + ns * (GI_HIT_VOXELS * h), dir, w);
+  return true;
+}
+
+vec3 lumen_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out int kind)
+{
+  float t_free = 0.0;
+  if (screen_steps > 0) {
+    vec3 L;
+    if (lumen_screen(o, dir, tmax, t_free, hit_t, L)) {
+      kind = LUMEN_SCREEN;
+      return L;
+    }
+  }
+  float w;
+  vec3 L = gi_radiance_from(o, dir, t_free, tmax, hit_t, w);
+  kind = hit_t >= tmax ? LUMEN_SKY : (hit_t < GSDF_MESH_SPLIT ? LUMEN_MESH : LUMEN_GLOBAL);
   return L;
 }

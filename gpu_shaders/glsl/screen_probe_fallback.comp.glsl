@@ -11,7 +11,8 @@
  * slowest pixel: 68 -> 1810 ms from 10 to 1,000 small objects in the earlier measurement).
  * With the world radiance cache on the rays trace ~2 m and take the far field from it
  * (rc_radiance), marking the cells around the pixel for the next frame's probes (rc_marks).
- * Dispatched over the whole list (no read-back of the count): slots past fb_counter return.
+ * Dispatched over the listed pixels (their count read back: compute.read_counter); slots past
+ * fb_counter return.
  * Budget: at most fb_budget rays in all (the uniform probes' count). A longer list (thousands of
  * pixels on many small objects: no probe lies on a sphere 4 pixels wide) traces m = 8, 4, 2 or 1
  * rays per pixel, the strata phase, phase + 16 / m, ... of the 16 on turn phase of each cycle of

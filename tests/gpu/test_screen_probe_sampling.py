@@ -249,3 +249,56 @@ def test_a_convex_object_under_a_black_sky_gets_no_indirect_light(tmp_path):
     print("max E", e.max(), "mean E", e.mean(), "direct E", direct_e)
     assert direct_e > 1.0
     assert e.max() <= 1e-4 * direct_e
+
+
+LIVE = COMMON + """
+ATLAS = []
+_gather_live = screen_probes.ScreenProbes.gather
+def _atlas(self, *args, **kw):
+    out = _gather_live(self, *args, **kw)
+    t = self.textures
+    ATLAS.append(dict(info=compute.read(t["info"]), radiance=compute.read(t["radiance"]),
+                      listed=compute.read_counter(t["probe_counter"]), res=self.res,
+                      uniform=self.grid))
+    return out
+screen_probes.ScreenProbes.gather = _atlas
+scene = empty_scene(voxel_density=24.0, cache_dir="cache")
+bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.6)
+bpy.context.object.data.materials.append(principled("Ball", (0.0, 0.0, 0.0), emission=(1, 1, 1),
+                                                    strength=1.0))
+world((1.0, 1.0, 1.0))
+camera((0.0, -3.0, 0.8), (0.0, 0.0, 0.0), lens=50.0)
+res, err = bake()
+assert err is None, err
+render(48, 2, probe_importance=False)
+for k, a in enumerate(ATLAS):
+    np.save(f"info{k}.npy", a["info"])
+    np.save(f"radiance{k}.npy", a["radiance"])
+emit(listed=[a["listed"] for a in ATLAS], res=ATLAS[0]["res"], uniform=list(ATLAS[0]["uniform"]))
+"""
+
+
+def test_only_the_live_probes_are_traced_and_all_of_them(tmp_path):
+    """screen_probe_list: the probe trace runs one invocation per ray of a live probe slot (the
+    atlas, sized for every adaptive probe there could be, is mostly empty; on llvmpipe an
+    invocation that returns at once cost nearly what a traced one does). Furnace (every ray sees
+    L = 1): every texel of every live slot holds L = 1 and a hit distance > 0 (a texel the
+    compact dispatch missed would hold the cleared 0), every texel of an empty slot w = -1 (no
+    probe), and the list counted exactly the live slots, adaptive ones among them."""
+    run = run_python(LIVE, tmp_path, timeout=600)
+    assert run.returncode == 0, run.explain()
+    r = run.result
+    res, (gw, gh) = r["res"], r["uniform"]
+    assert len(r["listed"]) == 2
+    for k, listed in enumerate(r["listed"]):
+        info = np.load(tmp_path / f"info{k}.npy")
+        rad = np.load(tmp_path / f"radiance{k}.npy")
+        ah, aw = info.shape[:2]
+        live = info[..., 3] > 0
+        assert listed == int(live.sum())
+        assert 0 < live.mean() < 0.5, live.mean()          # mostly empty: what the list skips
+        assert live[gh:].any()                               # adaptive probes are traced too
+        texels = rad.reshape(ah, res, aw, res, 4).transpose(0, 2, 1, 3, 4)   # [slot y, x, ty, tx]
+        assert (texels[live][..., 3] > 0).all()
+        assert np.abs(texels[live][..., :3] - 1.0).max() < 1e-4
+        assert (texels[~live][..., 3] == -1.0).all()
