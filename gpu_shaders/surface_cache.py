@@ -29,7 +29,7 @@ import gpu
 import numpy as np
 
 from . import compute
-from .card_packing import CARD_TEXELS, PackedCards, pack_cards
+from .card_packing import CARD_TEXELS, PROBE_BLOCK, PackedCards, pack_cards
 from .resources import SceneResources, float_buffer
 from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule, tile_area, tile_geometry
 
@@ -48,9 +48,18 @@ DIRECT = _pass("surface_cache_direct", ("lights", "sc_pages"),
                (('INT', 'light_count'), ('INT', 'light_samples')))
 PROBE_PLACE = _pass("surface_cache_probe_place", PAGES, (('INT', 'frame'),),
                     ("out_image", "probe_pos_out"))
-PROBE_TRACE = _pass("surface_cache_probe_trace", ("sc_probes", "sc_probe_pos") + PAGES,
-                    (('INT', 'frame'), ('FLOAT', 't_max'), ('VEC3', 'cam_pos'),
-                     ('FLOAT', 'lod_focal'), ('FLOAT', 'lod_rays')))
+# the rays to trace (the probes with a site, the rows the ray LOD keeps) listed and counted (read
+# back), then traced one invocation each: surface_cache_probe_list.comp.glsl says why
+PROBE_LIST = _pass("surface_cache_probe_list", ("sc_probes", "sc_probe_pos") + PAGES,
+                   (('INT', 'frame'), ('VEC3', 'cam_pos'), ('FLOAT', 'lod_focal'),
+                    ('FLOAT', 'lod_rays')),
+                   ("out_image", ("ray_rows", 'RGBA32F'), ("row_counter", 'R32I', RW)))
+RAY_GROUP = 64
+PROBE_TRACE = compute.Pass("surface_cache_probe_trace",
+                           samplers=("texel_card", "sc_probes", "sc_probe_pos", "ray_rows")
+                           + PAGES,
+                           push=(('INT', 'frame'), ('FLOAT', 't_max'), ('INT', 'row_count')),
+                           group=(RAY_GROUP, 1, 1))
 PROBE_SH = _pass("surface_cache_probe_sh", ("sc_rays", "sc_probes", "sc_probe_pos") + PAGES,
                  images=("out_image", "irradiance_out"))
 INDIRECT = _pass("surface_cache_indirect",
@@ -84,7 +93,7 @@ def mark_emissive_cards(cards: np.ndarray, emissive: np.ndarray) -> None:
 class SurfaceCache:
     """Card and lighting textures of one scene state (see the module docstring)."""
 
-    BYTES = {"RGBA16F": 8, "RGBA32F": 16, "R32F": 4}
+    BYTES = {"RGBA16F": 8, "RGBA32F": 16, "R32F": 4, "R32I": 4}
 
     def __init__(self, atlas, instance_cards):
         t0 = time.perf_counter()
@@ -126,6 +135,9 @@ class SurfaceCache:
             "positions": self._make("probe_positions", (gw, gh), 'RGBA32F', None),
             "sh": self._make("probe_sh", (gw * 2, gh * 2), 'RGBA32F', None),
             "irradiance": self._make("probe_irradiance", (gw, gh), 'RGBA32F', None)}
+        # this frame's rows of probe rays to trace (surface_cache_probe_list), at most 4 a probe
+        self.ray_rows = self._make("probe_ray_rows", (gw * 4, gh), 'RGBA32F', None)
+        self.row_counter = self._make("probe_row_counter", (1, 1), 'R32I', None)
         self.pages = PageSchedule(self.packed.texel_card, self.packed.cards[:, 0, 0]
                                   if self.packed.rows else np.zeros(0))
         tw, th = self.pages.grid
@@ -250,14 +262,22 @@ class SurfaceCache:
         PROBE_PLACE.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
                                frame=int(frame), out_image=t["probes"],   # one per probe
                                probe_pos_out=t["positions"])
-        PROBE_TRACE.run_groups((k * TILE // GROUP, TILE // GROUP), **common,   # one per ray
-                               gsdf=gsdf, sky=sky, voxels=voxels, frame=int(frame),
-                               t_max=float(t_max),
-                               cam_pos=compute.vec(lod[0] if lod else (0.0, 0.0, 0.0)),
-                               lod_focal=float(lod[1]) if lod else 0.0,
-                               lod_rays=float(lod[2]) if lod else 0.0,
-                               sc_probes=t["probes"], sc_probe_pos=t["positions"],
-                               out_image=t["rays"])
+        self.row_counter.clear(format='INT', value=(0,))
+        PROBE_LIST.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
+                              frame=int(frame),                          # one per probe
+                              cam_pos=compute.vec(lod[0] if lod else (0.0, 0.0, 0.0)),
+                              lod_focal=float(lod[1]) if lod else 0.0,
+                              lod_rays=float(lod[2]) if lod else 0.0,
+                              sc_probes=t["probes"], sc_probe_pos=t["positions"],
+                              out_image=t["rays"], ray_rows=self.ray_rows,
+                              row_counter=self.row_counter)
+        listed = compute.read_counter(self.row_counter)
+        if listed:
+            PROBE_TRACE.run(listed * PROBE_BLOCK, **common, gsdf=gsdf, sky=sky,  # one per ray
+                            voxels=voxels,
+                            frame=int(frame), t_max=float(t_max), row_count=listed,
+                            sc_probes=t["probes"], sc_probe_pos=t["positions"],
+                            ray_rows=self.ray_rows, out_image=t["rays"])
         PROBE_SH.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
                             sc_rays=t["rays"], sc_probes=t["probes"],   # one per probe
                             sc_probe_pos=t["positions"], out_image=t["sh"],
