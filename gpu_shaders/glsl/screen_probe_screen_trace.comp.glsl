@@ -19,7 +19,7 @@ void main()
   vec3 o, dir;
   float tmax;
   int level;
-  if (!probe_texel(tx) || !probe_ray(tx, o, dir, tmax, level)) {
+  if (!probe_begin(tx, o, dir, tmax, level)) {
     return;
   }
   float t_free, t;

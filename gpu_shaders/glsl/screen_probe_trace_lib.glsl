@@ -85,6 +85,15 @@ bool probe_ray(ivec2 tx, out vec3 o, out vec3 dir, out float tmax, out int level
   return true;
 }
 
+/* This invocation's texel and its ray (probe_texel, probe_ray); false: nothing to trace. */
+bool probe_begin(out ivec2 tx, out vec3 o, out vec3 dir, out float tmax, out int level)
+{
+  o = dir = vec3(0.0);
+  tmax = t_max;
+  level = -1;
+  return probe_texel(tx) && probe_ray(tx, o, dir, tmax, level);
+}
+
 /* The ray's result (radiance L, hit distance t): a ray cut short for the radiance cache that met
  * nothing is flagged for it and marks its cells. */
 void probe_ray_store(ivec2 tx, vec3 o, int level, float tmax, vec3 L, float t)

@@ -80,7 +80,8 @@ def world(colour):
     w.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
 """
 
-FURNACE = COMMON + """
+# an emitting sphere of albedo 0 under a sky of L = 1: every probe ray sees L = 1
+FURNACE_SCENE = """
 scene = empty_scene(voxel_density=24.0, cache_dir="cache")
 bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.6)
 bpy.context.object.data.materials.append(principled("Ball", (0.0, 0.0, 0.0), emission=(1, 1, 1),
@@ -89,6 +90,9 @@ world((1.0, 1.0, 1.0))
 camera((0.0, -3.0, 0.8), (0.0, 0.0, 0.0), lens=50.0)
 res, err = bake()
 assert err is None, err
+"""
+
+FURNACE = COMMON + FURNACE_SCENE + """
 out = {}
 for name, imp in (("uniform", False), ("importance", True)):
     E, sampled, kinds = render(48, 3, probe_importance=imp)
@@ -262,14 +266,7 @@ def _atlas(self, *args, **kw):
                       uniform=self.grid))
     return out
 screen_probes.ScreenProbes.gather = _atlas
-scene = empty_scene(voxel_density=24.0, cache_dir="cache")
-bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.6)
-bpy.context.object.data.materials.append(principled("Ball", (0.0, 0.0, 0.0), emission=(1, 1, 1),
-                                                    strength=1.0))
-world((1.0, 1.0, 1.0))
-camera((0.0, -3.0, 0.8), (0.0, 0.0, 0.0), lens=50.0)
-res, err = bake()
-assert err is None, err
+""" + FURNACE_SCENE + """
 render(48, 2, probe_importance=False)
 for k, a in enumerate(ATLAS):
     np.save(f"info{k}.npy", a["info"])
