@@ -53,11 +53,15 @@ def test_every_shader_source_resolves():
         assert "#include" not in src
         if name.endswith(".comp.glsl"):
             assert src.count("void main()") == 1, name
-    # the tracers need the whole stack, in order
-    order = glsl_include.files("screen_probe_trace.comp.glsl")
+    # the tracers need the whole stack, in order (the screen trace's pass: all of it)
+    order = glsl_include.files("screen_probe_screen_trace.comp.glsl")
     for before, after in (("sdf_lib.glsl", "sdf_ray_lib.glsl"), ("sdf_ray_lib.glsl", "gi_trace_lib.glsl"),
                           ("global_sdf_lib.glsl", "voxel_lighting_lib.glsl"),
                           ("voxel_lighting_trace_lib.glsl", "gi_trace_lib.glsl"),
                           ("gi_trace_lib.glsl", "lumen_trace_lib.glsl"),
                           ("screen_trace_lib.glsl", "lumen_trace_lib.glsl")):
         assert order.index(before) < order.index(after)
+    # the default probe trace holds no screen-trace code (llvmpipe pays for code it never runs)
+    plain = glsl_include.files("screen_probe_trace.comp.glsl")
+    assert "gi_trace_lib.glsl" in plain
+    assert "screen_trace_lib.glsl" not in plain and "lumen_trace_lib.glsl" not in plain
