@@ -2,10 +2,10 @@
  * invocation per ray of a live probe and none for the empty slots (the atlas holds the 8x8 and
  * 4x4 adaptive levels for the worst case, 28 slots per uniform probe: a 128 px F12 placed ~220
  * probes in 7,168 slots). Why it matters: on llvmpipe an invocation of a large shader costs
- * about as much when it returns at once as when it traces (its control flow is executed with
- * lanes masked, not skipped): the probe trace over the whole atlas cost 1.3-1.9 s per frame
- * with no probe at all against ~1.9 s with them (cornell, 128 px, bench/f12_ab.py). On a GPU the
- * empty invocations are cheap but not free.
+ * about as much when it returns at once as when it traces (measured, cornell F12 128 px, a
+ * per-dispatch timer: the probe trace over the whole atlas cost 1.3-1.9 s per frame with no
+ * probe at all against ~1.9 s with them; wrapping the body in a loop no lane enters did not
+ * help). On a GPU the empty invocations are cheap but not free.
  * Per slot (i, j) of the atlas (one invocation): a live slot (probe_info w > 0) is appended to
  * probe_list (RGBA32F: i, j; index from the atomic counter probe_counter, cleared before); an
  * empty one gets w -1 (no probe) in the texels a trace would have written this dispatch (every

@@ -8,7 +8,7 @@
  * are a probe without a site's. surface_cache_probe_trace then runs 4 invocations per listed row,
  * and none for the rest.
  * Why: on llvmpipe an invocation of a large shader that returns at once costs nearly what one
- * that traces does (its branches run with lanes masked; screen_probe_list.comp.glsl): the tiles'
+ * that traces does (measured: screen_probe_list.comp.glsl): the tiles'
  * probes without a site (texels no card covers) and the rows the LOD skips cost the trace as
  * much as traced rays.
  * Ray LOD (lecture: the surface cache's resolution follows the card's size on screen): a probe
