@@ -12,9 +12,9 @@ resolve goes on to the mesh SDFs (to 1.8 m), the global SDF and the sky:
                         A ray that passes behind what a pixel shows without hitting it ends
                         there (SCREEN_BEHIND: what is behind is unknown; walking on found
                         surfaces past a thin wall's edge, `thin` leaked 1.98%)
-    the hit's light     HITS "CACHE" (default): the SDF trace goes on from t_free, a step or two
-                        before the hit, and reads the surface cache there as any SDF hit does:
-                        the light of the trace without the screen, found sooner. "COLOUR" (the
+    the hit's light     HITS "CACHE" (default): the surface cache read at the hit pixel's
+                        surface, lifted half a voxel towards the ray (where an SDF hit lies),
+                        no SDF steps (lumen_trace_lib.glsl: lumen_screen). "COLOUR" (the
                         lecture's): the screen colour, this frame's direct light and the last
                         gather's indirect irradiance composited per pixel, averaged over the
                         ray's cone on the hit's surface (screen_cone); a gather with no history
@@ -54,9 +54,9 @@ SAMPLERS = ("gbuf_position", "gbuf_normal", "hzb", "screen_colour", "screen_came
 # screen_cam: camera position xyz, w the thickness (m) a surface is assumed behind the depth
 # buffer; screen_steps: HZB cells per ray (0: off)
 PUSH = (('VEC4', 'screen_cam'), ('INT', 'screen_steps'))
-# what a screen hit's light is: "CACHE" the surface cache's at the hit (the SDFs go on from the
-# hit pixel's entry, a step or two: the light an SDF hit reads, the screen having found the empty
-# space before it), "COLOUR" the screen colour (the lecture's; noisier and darker here: README)
+# what a screen hit's light is: "CACHE" the surface cache's at the hit pixel's surface, half a
+# voxel towards the ray (no SDF steps), "COLOUR" the screen colour (the lecture's; noisier and
+# darker here: README)
 HITS = ("CACHE", "COLOUR")
 METHOD = compute.Pass("gi_trace_method", samplers=SAMPLERS,
                       push=PUSH + (('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 't_max')))
