@@ -12,7 +12,8 @@ Why: bench/glsl_ab.py times the viewport; an F12 optimisation must keep F12's im
 
     .venv/bin/python bench/f12_ab.py --b /tmp/variant [--a gpu_shaders/glsl] [--rounds 1]
                                      [--scenes cornell,window] [--size 128] [--setting FIELD=VALUE]
-                                     [--setting-both FIELD=VALUE]
+                                     [--setting-both FIELD=VALUE] [--show PASS]
+                                     [--save DIR]
 """
 from __future__ import annotations
 
@@ -77,6 +78,10 @@ def main():
     glsl_ab.ab_arguments(ap, rounds=1)
     ap.add_argument("--scenes", default="cornell")
     ap.add_argument("--size", type=int, default=128)
+    ap.add_argument("--show", action="append", default=[], metavar="PASS",
+                    help="also print this pass's seconds (besides the six that changed most)")
+    ap.add_argument("--save", metavar="DIR",
+                    help="write each scene's Combined images to DIR/<scene>_a.npy, _b.npy")
     args = ap.parse_args()
     folders, settings_b, both = glsl_ab.ab_versions(args)
 
@@ -111,6 +116,10 @@ def main():
         a, b = (statistics.median(s) for s in seconds)
         ca, cb = (statistics.median(s) for s in cpus)
         diff = float(np.abs(images[0] - images[1]).max())
+        if args.save:
+            Path(args.save).mkdir(parents=True, exist_ok=True)
+            for tag, image in zip("ab", images):
+                np.save(Path(args.save) / f"{name}_{tag}.npy", image)
         print(f"[{name}] F12 {args.size}px: wall A {a:.2f} s, B {b:.2f} s, B/A {b / a:.3f}; "
               f"CPU A {ca:.2f} s, B {cb:.2f} s, B/A {cb / ca:.3f}; "
               f"max |Combined B - A| {diff:.3g}", flush=True)
@@ -118,7 +127,8 @@ def main():
         for k in set(passes[0]) | set(passes[1]):
             pa, pb = (statistics.median(p[k]) if p[k] else 0.0 for p in passes)
             rows.append((abs(pb - pa), k, pa, pb))
-        for _, k, pa, pb in sorted(rows, reverse=True)[:6]:
+        top = sorted(rows, reverse=True)
+        for _, k, pa, pb in top[:6] + [r for r in top[6:] if r[1] in args.show]:
             print(f"    {k:36s} {pa:8.2f} {pb:8.2f} CPU s  B/A {pb / pa if pa else 0:.3f}")
 
 

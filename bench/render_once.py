@@ -11,6 +11,9 @@ deterministic) and the seconds over alternated rounds (the machine is shared).
     .venv/bin/python bench/render_once.py /tmp/ab/new cornell,window,thin 128
     .venv/bin/python bench/render_once.py --compare /tmp/ab/new /tmp/ab/old
 
+Settings after the size (FIELD=VALUE, scene.lumen.engine's; bools 0/1) apply to every scene:
+    .venv/bin/python bench/render_once.py /tmp/ab/new cornell 128 screen_trace=1
+
 Each render follows a 32x32 warm-up of the same scene (shader compilation). `imported` and
 `textured` need LUMEN_SHARED_MESHES (../shared/meshes).
 """
@@ -25,7 +28,17 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 
 
-def render(out: str, scenes: list, size: int) -> None:
+def apply_settings(scene, items) -> None:
+    """FIELD=VALUE strings set on scene.lumen.engine (the value converted to the property's
+    type: bool from 0/1)."""
+    for item in items:
+        field, _, value = item.partition("=")
+        current = getattr(scene.lumen.engine, field)
+        setattr(scene.lumen.engine, field, type(current)(int(value)) if isinstance(current, bool)
+                else type(current)(value))
+
+
+def render(out: str, scenes: list, size: int, settings=()) -> None:
     import demo
     import numpy as np
 
@@ -37,7 +50,9 @@ def render(out: str, scenes: list, size: int) -> None:
     Path(out).mkdir(parents=True, exist_ok=True)
     for name in scenes:
         with tempfile.TemporaryDirectory() as tmp:
-            wall, cpu, passes = f12_ab.warm_then_time(f12_ab.baked_scene(name, tmp), size)
+            scene = f12_ab.baked_scene(name, tmp)
+            apply_settings(scene, settings)
+            wall, cpu, passes = f12_ab.warm_then_time(scene, size)
             R = engine.LAST_RENDER
             if "error" in R:
                 raise SystemExit(f"{name}: {R.get('traceback', R['error'])}")
@@ -69,7 +84,8 @@ def compare(a: str, b: str) -> None:
 if __name__ == "__main__":
     if len(sys.argv) == 4 and sys.argv[1] == "--compare":
         compare(sys.argv[2], sys.argv[3])
-    elif len(sys.argv) == 4:
-        render(sys.argv[1], [s for s in sys.argv[2].split(",") if s], int(sys.argv[3]))
+    elif len(sys.argv) >= 4 and "=" not in "".join(sys.argv[1:4]):
+        render(sys.argv[1], [s for s in sys.argv[2].split(",") if s], int(sys.argv[3]),
+               sys.argv[4:])
     else:
         raise SystemExit(__doc__)
