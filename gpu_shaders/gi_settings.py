@@ -96,8 +96,8 @@ class GISettings:
     rc_retrace: int = 8            # of them, at most this many re-traced (least recent first)
     rc_capacity: int = 2048        # radiance cache probe slots
     screen_trace: bool = False     # probe rays walk the HZB first (Lumen's first trace); off:
-                                   # relMSE 0.6-1.5% above the SDF-only trace on yard and
-                                   # textured, F12 no faster (README: screen trace)
+                                   # relMSE +3.9% on glow and +2.6% on textured against the
+                                   # SDF-only trace, probe rays no faster on cornell (README)
     screen_hit: str = "CACHE"      # a screen hit's light: the surface cache's ("CACHE") or the
                                    # screen colour ("COLOUR", the lecture's): screen_trace.HITS
     screen_steps: int = 50         # HZB cells per screen ray (the lecture's "HZB Max Step=50")

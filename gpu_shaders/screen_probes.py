@@ -67,8 +67,9 @@ RAYS = compute.Pass("screen_probe_rays",
                           ('INT', 'frame'), ('INT', 'uniform_rows')))
 # the probe rays (screen_probe_trace_lib.glsl), one invocation per ray of a live probe (LIST:
 # the atlas's live slots, their count read back): without the screen trace one pass, TRACE; with
-# it SCREEN_TRACE (the screen first; the rays it does not resolve listed) then TRACE_LIST (those
-# on the SDFs, compacted: full work groups)
+# it SCREEN_TRACE (the screen walk; its hits listed, the other rays listed), SCREEN_HIT (the
+# hits' light; those it cannot give listed with the others) then TRACE_LIST (those on the SDFs),
+# each over its list's count: full work groups)
 LIST = compute.Pass("screen_probe_list", samplers=("probe_info",),
                     images=(("probe_list", 'RGBA32F'), ("probe_counter", 'R32I', {'READ', 'WRITE'}),
                             ("out_image", 'RGBA32F')),
@@ -81,12 +82,21 @@ TRACE_PUSH = (radiance_cache.CAMERA, ('VEC2', 'ray_jitter'), ('INT', 'probe_res'
               ('IVEC2', 'texel_phase'), ('INT', 'texel_fill'), ('INT', 'probe_count'))
 TRACE = compute.Pass("screen_probe_trace", samplers=TRACE_SAMPLERS, images=TRACE_IMAGES,
                      push=TRACE_PUSH, group=(RAY_GROUP, 1, 1))
+SCREEN_PUSH = screen_trace.PUSH[:1] + TRACE_PUSH + screen_trace.PUSH[1:]
 SCREEN_TRACE = compute.Pass("screen_probe_screen_trace",
                             samplers=TRACE_SAMPLERS + screen_trace.SAMPLERS,
-                            images=TRACE_IMAGES + (("ray_list", 'RGBA32F', {'WRITE'}),
+                            images=TRACE_IMAGES + (("hit_list", 'RGBA32F', {'WRITE'}),
+                                                   ("hit_counter", 'R32I', {'READ', 'WRITE'}),
+                                                   ("ray_list", 'RGBA32F', {'WRITE'}),
                                                    ("ray_counter", 'R32I', {'READ', 'WRITE'})),
-                            push=screen_trace.PUSH[:1] + TRACE_PUSH + screen_trace.PUSH[1:],
-                            group=(RAY_GROUP, 1, 1))
+                            push=SCREEN_PUSH, group=(RAY_GROUP, 1, 1))
+SCREEN_HIT = compute.Pass("screen_probe_screen_hit",
+                          samplers=TRACE_SAMPLERS + screen_trace.SAMPLERS,
+                          images=TRACE_IMAGES + (("hit_list", 'RGBA32F', {'READ'}),
+                                                 ("hit_counter", 'R32I', {'READ'}),
+                                                 ("ray_list", 'RGBA32F', {'WRITE'}),
+                                                 ("ray_counter", 'R32I', {'READ', 'WRITE'})),
+                          push=SCREEN_PUSH, group=(RAY_GROUP, 1, 1))
 TRACE_LIST = compute.Pass("screen_probe_trace_list", samplers=TRACE_SAMPLERS,
                           images=TRACE_IMAGES + (("ray_list", 'RGBA32F', {'READ'}),
                                                  ("ray_counter", 'R32I', {'READ'})),
@@ -255,10 +265,16 @@ class ScreenProbes:
             if "ray_list" not in tex or tex["ray_list"].width * tex["ray_list"].height \
                     < live * rays_per:
                 tex["ray_list"] = compute.texture((r * aw // step, r * ah // step))
+                tex["hit_list"] = compute.texture((2 * r * aw // step, r * ah // step))
                 tex["ray_counter"] = compute.texture((1, 1), 'R32I')
+                tex["hit_counter"] = compute.texture((1, 1), 'R32I')
+            lists = {k: tex[k] for k in ("ray_list", "ray_counter", "hit_list", "hit_counter")}
             tex["ray_counter"].clear(format='INT', value=(0,))
-            SCREEN_TRACE.run(live * rays_per, **rays, **screen.inputs(),
-                             ray_list=tex["ray_list"], ray_counter=tex["ray_counter"])
+            tex["hit_counter"].clear(format='INT', value=(0,))
+            SCREEN_TRACE.run(live * rays_per, **rays, **screen.inputs(), **lists)
+            hits = compute.read_counter(tex["hit_counter"])
+            if hits:
+                SCREEN_HIT.run(hits, **rays, **screen.inputs(), **lists)
             listed = compute.read_counter(tex["ray_counter"])
             if listed:
                 TRACE_LIST.run(listed, **rays, ray_list=tex["ray_list"],

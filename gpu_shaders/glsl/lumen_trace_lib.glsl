@@ -6,9 +6,9 @@
  * screen_trace_lib.glsl and screen_trace.py's SAMPLERS and PUSH): the screen first (HZB, at
  * most screen_steps cells; lumen_screen: a hit reads the surface cache or the screen colour),
  * then from where the depth buffer stops vouching for the ray (t_free) the mesh SDFs, the
- * global SDF and the sky (gi_radiance_from). The screen probes run the two parts as two passes
- * with the unresolved rays compacted between them (screen_probe_screen_trace.comp.glsl);
- * lumen_radiance runs both for one ray (the TRACE_METHOD debug view).
+ * global SDF and the sky (gi_radiance_from). The screen probes run the walk, the hits' light
+ * and the SDF trace as three passes over compacted lists (screen_probe_screen_trace.comp.glsl);
+ * lumen_radiance runs them for one ray (the TRACE_METHOD debug view).
  * screen_steps 0: the SDFs from the origin.
  * Objects hidden from the camera (screen_hidden: their object-table rows, -1 for none) are not in
  * the depth buffer, which therefore vouches for space they fill: before a screen result is used,
@@ -52,33 +52,42 @@ float screen_hidden_guard(vec3 o, vec3 dir, float t_end)
   return t_end;
 }
 
-/* The screen part of Lumen's ray: true where the screen resolves it, with its hit distance hit_t
- * and light L; else false, and t_free is where the SDF trace goes on (0 where the screen vouches
- * for nothing).
- * A hit's light (screen_camera texel 4 y): 1 (HITS "CACHE") the surface cache's at the hit, as an
- * SDF hit reads it: at the hit pixel's surface plane lifted half a voxel of the nearest object
- * towards the ray's side (an SDF hit lies there; read on the plane, a wall thinner than a voxel
- * would give either side's light); a hit on something the SDFs do not hold (no object within 2
- * voxels) is left to the SDF trace. 0 (HITS "COLOUR") the screen colour over the ray's cone
- * (screen_cone). */
-bool lumen_screen(vec3 o, vec3 dir, float tmax, out float t_free, out float hit_t, out vec3 L)
+/* The screen part of Lumen's ray, its walk: true where the screen finds a hit (distance ts, on
+ * pixel hit_px's surface) that no camera-hidden object comes before; else false, and t_free is
+ * where the SDF trace goes on (0 where the screen vouches for nothing). Its light is
+ * lumen_screen_hit's. Two functions because the screen probes run them as two passes, each over
+ * a compacted list (screen_probe_screen_trace.comp.glsl). */
+bool lumen_screen_walk(vec3 o, vec3 dir, float tmax, out float t_free, out float ts,
+                       out ivec2 hit_px)
 {
-  ivec2 hit_px;
-  L = vec3(0.0);
-  hit_t = tmax;
-  float ts = screen_trace(screen_view_proj(), screen_cam.xyz, o, dir, tmax, screen_steps,
-                          screen_cam.w, 2.0 * gi_thin_margin(), true, t_free, hit_px);
+  ts = screen_trace(screen_view_proj(), screen_cam.xyz, o, dir, tmax, screen_steps, screen_cam.w,
+                    2.0 * gi_thin_margin(), true, t_free, hit_px);
   float guard = screen_hidden_guard(o, dir, ts >= 0.0 ? ts : t_free);
   if (guard < (ts >= 0.0 ? ts : t_free)) {     /* a hidden object first: the SDFs from there */
     t_free = min(t_free, guard);
     return false;
   }
-  if (ts < 0.0) {
-    return false;
-  }
+  return ts >= 0.0;
+}
+
+/* The light L of a screen hit (lumen_screen_walk's ts, hit_px) of the ray o + t dir; false where
+ * the screen cannot give it (the SDF trace then goes on from the walk's t_free).
+ * screen_camera texel 4 y: 1 (HITS "CACHE") the surface cache's at the hit, as an SDF hit reads
+ * it: at the hit pixel's surface plane lifted half a voxel of the nearest object towards the
+ * ray's side (an SDF hit lies there; read on the plane, a wall thinner than a voxel would give
+ * either side's light); beyond GSDF_MESH_SPLIT, where the SDF trace's hits read voxel lighting,
+ * voxel lighting there too (the G-buffer normal choosing its faces), the surface cache where it
+ * holds nothing. A hit on something the SDFs do not hold (no object within 2 voxels) is left to
+ * the SDF trace. 0 (HITS "COLOUR") the screen colour over the ray's cone (screen_cone).
+ * Why voxel lighting far: a surface-cache read (the mesh SDF's normal, every card's 2x2 texels,
+ * each tested against walls between) costs more than a whole SDF ray that ends in voxel
+ * lighting: read for every hit, the screen's hits cost more than the trace they replaced
+ * (bench/f12_ab.py, cornell 128 px: 2.7 CPU s for 64% of the rays against 2.8 for all of them). */
+bool lumen_screen_hit(vec3 o, vec3 dir, float ts, ivec2 hit_px, out vec3 L)
+{
+  L = vec3(0.0);
   vec4 cone = texelFetch(screen_camera, ivec2(4, 0), 0);
   if (cone.y < 0.5) {
-    hit_t = ts;
     L = screen_cone(screen_colour, screen_view_proj(), screen_cam.xyz, cone.x, o + dir * ts, ts,
                     hit_px);
     return true;
@@ -93,10 +102,30 @@ bool lumen_screen(vec3 o, vec3 dir, float tmax, out float t_free, out float hit_
   if (obj < 0 || abs(d) > 2.0 * h) {
     return false;
   }
+  vec3 q = p + ns * (GI_HIT_VOXELS * h);
+  if (ts >= GSDF_MESH_SPLIT) {
+    int level;
+    float v;
+    global_sdf_sample(q, level, v);
+    if (vl_sample(level, q, dir, ns, L)) {
+      return true;
+    }
+  }
   float w;
-  hit_t = ts;
-  L = sc_sample_world(obj, p + ns * (GI_HIT_VOXELS * h), dir, w);
+  L = sc_sample_world(obj, q, dir, w);
   return true;
+}
+
+/* Both parts for one ray: true where the screen resolves it (hit distance hit_t, light L). */
+bool lumen_screen(vec3 o, vec3 dir, float tmax, out float t_free, out float hit_t, out vec3 L)
+{
+  ivec2 hit_px;
+  L = vec3(0.0);
+  float ts;
+  bool hit = lumen_screen_walk(o, dir, tmax, t_free, ts, hit_px)
+             && lumen_screen_hit(o, dir, ts, hit_px, L);
+  hit_t = hit ? ts : tmax;
+  return hit;
 }
 
 vec3 lumen_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out int kind)

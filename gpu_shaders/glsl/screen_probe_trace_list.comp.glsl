@@ -1,9 +1,9 @@
 #include "screen_probe_trace_lib.glsl"
 #include "gi_trace_lib.glsl"
-/* Screen probes, the rays the screen trace did not resolve (screen_probe_screen_trace lists them
- * in ray_list: atlas texel xy, t_free; ray_counter entries): each traced on the SDFs from t_free
- * (gi_trace_lib.glsl), one invocation per listed ray. Dispatched over the whole list (no
- * read-back of the count): slots past ray_counter return.
+/* Screen probes, the rays the screen trace did not resolve (screen_probe_screen_trace and
+ * screen_probe_screen_hit list them in ray_list: atlas texel xy, t_free; ray_counter entries):
+ * each traced on the SDFs from t_free (gi_trace_lib.glsl), one invocation per listed ray,
+ * dispatched over the count read back.
  * Inputs: screen_probe_trace_lib's; images ray_list, ray_counter (read).
  */
 void main()
