@@ -31,7 +31,7 @@ Texture layout (`grid`: float32 [rows, GRID_WIDTH, 4], uploaded as one RGBA32F 2
 texel i at (i % GRID_WIDTH, i // GRID_WIDTH)):
   texel 0: (grid origin xyz, cell edge)
   texel 1: (cells per axis xyz, first list texel)
-  texel 2: (M, voxel for samples with no listed instance, list entries, largest world voxel)
+  texel 2: (M, voxel for samples with no listed instance, list entries, CELL_CAP)
   texel 3 + x + nx (y + ny z): cell (first list entry, count or -1, B, 0)
   list: (instance index, its distance to the cell) pairs, 2 per texel (entry e in texel
         first_list + e // 2, channels 2 (e % 2) and 2 (e % 2) + 1).
@@ -111,11 +111,9 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
         dims = np.clip(np.ceil((hi - lo) / cell - 1e-9).astype(np.int64), 1, grid_max)
         margin = max(cell, 4.0 * float(voxel[idx].max()))
         fallback_voxel = float(voxel[idx].min())
-        largest_voxel = float(voxel[idx].max())
     else:
         lo, hi, cell, dims, margin, fallback_voxel = (np.zeros(3), np.zeros(3), 1.0,
                                                        np.ones(3, np.int64), 1.0, 1.0)
-        largest_voxel = 1.0
     ncells = int(dims.prod())
     reach = REACH_MARGINS * margin
     bound = np.full(ncells, FAR)
@@ -184,7 +182,7 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     first_list = HEADER_TEXELS + ncells
     tex[0] = (*lo, cell)
     tex[1] = (*dims, first_list)
-    tex[2] = (margin, fallback_voxel, entries, largest_voxel)
+    tex[2] = (margin, fallback_voxel, entries, cap)
     body = tex[HEADER_TEXELS:HEADER_TEXELS + ncells]
     body[:, 0] = first
     body[:, 1] = np.where(over, -1, kept)
