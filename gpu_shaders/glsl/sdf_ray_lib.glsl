@@ -100,6 +100,13 @@ bool gi_visible_from(vec3 pa, float da, vec3 b, vec3 nb, float voxel)
   float h;
   int obj;
   float db = sdf_scene(pb, h, obj);
+  if (da + db - 2.0 * shell >= length(pb - pa)) {
+    return true;           /* the two ends' empty balls, each less the hit shell, cover the
+                            * segment: no sample on it can come within the shell of a surface,
+                            * so the trace below would find nothing (bench/object_scaling.py:
+                            * a default F12 among 1,000 spheres 65 -> 55 s, images the same
+                            * but 0.2% of yard's pixels, by at most 1.5%) */
+  }
   if (da < db) {
     vec3 tmp = pa;
     pa = pb;
