@@ -47,7 +47,7 @@ def _pass(name, samplers=(), push=(), images=("out_image",)):
 DIRECT = _pass("surface_cache_direct", ("lights", "sc_pages"),
                (('INT', 'light_count'), ('INT', 'light_samples')))
 PROBE_PLACE = _pass("surface_cache_probe_place", PAGES, (('INT', 'frame'),),
-                    ("out_image", "probe_pos_out"))
+                    ("out_image", "probe_pos_out", "probe_room_out"))
 # the rays to trace (the probes with a site, the rows the ray LOD keeps) listed and counted (read
 # back), then traced one invocation each: surface_cache_probe_list.comp.glsl says why
 PROBE_LIST = _pass("surface_cache_probe_list", ("sc_probes", "sc_probe_pos") + PAGES,
@@ -60,10 +60,12 @@ PROBE_TRACE = compute.Pass("surface_cache_probe_trace",
                            + PAGES,
                            push=(('INT', 'frame'), ('FLOAT', 't_max'), ('INT', 'row_count')),
                            group=(RAY_GROUP, 1, 1))
-PROBE_SH = _pass("surface_cache_probe_sh", ("sc_rays", "sc_probes", "sc_probe_pos") + PAGES,
+PROBE_SH = _pass("surface_cache_probe_sh",
+                 ("sc_rays", "sc_probes", "sc_probe_pos", "sc_probe_room") + PAGES,
                  images=("out_image", "irradiance_out"))
 INDIRECT = _pass("surface_cache_indirect",
-                 ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos") + PAGES,
+                 ("sc_probes", "sc_probe_sh", "sc_probe_irradiance", "sc_probe_pos",
+                  "sc_probe_room") + PAGES,
                  images=(("out_image", 'RGBA32F', RW), ("delta_image", 'RGBA32F', RW)))
 COMBINE = _pass("surface_cache_combine", ("sc_direct", "sc_indirect", "sc_pages"))
 LAYER = _pass("surface_cache_layer", ("sc_direct", "sc_indirect", "sc_tile_age"),
@@ -133,6 +135,7 @@ class SurfaceCache:
             "rays": self._make("probe_rays", (gw * 4, gh * 4), 'RGBA32F', None),
             "probes": self._make("probes", (gw, gh), 'RGBA32F', None),
             "positions": self._make("probe_positions", (gw, gh), 'RGBA32F', None),
+            "room": self._make("probe_room", (gw, gh), 'RGBA32F', None),
             "sh": self._make("probe_sh", (gw * 2, gh * 2), 'RGBA32F', None),
             "irradiance": self._make("probe_irradiance", (gw, gh), 'RGBA32F', None)}
         # this frame's rows of probe rays to trace (surface_cache_probe_list), at most 4 a probe
@@ -261,7 +264,7 @@ class SurfaceCache:
                       sc_tile_frame=self.tile_frame)
         PROBE_PLACE.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
                                frame=int(frame), out_image=t["probes"],   # one per probe
-                               probe_pos_out=t["positions"])
+                               probe_pos_out=t["positions"], probe_room_out=t["room"])
         self.row_counter.clear(format='INT', value=(0,))
         PROBE_LIST.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
                               frame=int(frame),                          # one per probe
@@ -280,12 +283,13 @@ class SurfaceCache:
                             ray_rows=self.ray_rows, out_image=t["rays"])
         PROBE_SH.run_groups((k * TILE_PROBES // GROUP, TILE_PROBES // GROUP), **common,
                             sc_rays=t["rays"], sc_probes=t["probes"],   # one per probe
-                            sc_probe_pos=t["positions"], out_image=t["sh"],
+                            sc_probe_pos=t["positions"], sc_probe_room=t["room"],
+                            out_image=t["sh"],
                             irradiance_out=t["irradiance"])
         INDIRECT.run_groups((k * TILE // GROUP, TILE // GROUP), **common,        # one per texel
                             sc_probes=t["probes"], sc_probe_sh=t["sh"],
                             sc_probe_irradiance=t["irradiance"], sc_probe_pos=t["positions"],
-                            out_image=self.indirect, delta_image=self.delta)  # in place: blend
+                            sc_probe_room=t["room"], out_image=self.indirect, delta_image=self.delta)  # in place: blend
         return k
 
     def indirect_total(self) -> float:

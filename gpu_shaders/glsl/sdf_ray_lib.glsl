@@ -89,17 +89,15 @@ vec3 gi_lifted(vec3 a, vec3 na, float voxel)
   return a + na * (GI_LIFT_VOXELS * voxel);
 }
 
-bool gi_visible_from(vec3 pa, float da, vec3 b, vec3 nb, float voxel)
+/* gi_visible_from with both lifted ends and their fields given (a pass that keeps the field at
+ * a probe's lifted end, as the surface cache's probes do, samples it once, not once per test). */
+bool gi_visible_between(vec3 pa, float da, vec3 pb, float db, float voxel)
 {
-  vec3 pb = gi_lifted(b, nb, voxel);
   float shell = GI_HIT_VOXELS * voxel;
   if (length(pb - pa) < shell) {
-    return true;           /* before sampling b's end: the pairs closer than half a voxel (an
-                            * anti-aliasing sample's neighbours, mostly) cost no field sample */
+    return true;
   }
-  float h;
   int obj;
-  float db = sdf_scene(pb, h, obj);
   if (da + db - 2.0 * shell >= length(pb - pa)) {
     return true;           /* the two ends' empty balls, each less the hit shell, cover the
                             * segment: no sample on it can come within the shell of a surface,
@@ -131,6 +129,18 @@ bool gi_visible_from(vec3 pa, float da, vec3 b, vec3 nb, float voxel)
   }
   float t;
   return !gi_trace_mesh(pa, d / len, 0.0, stop, t, obj);
+}
+
+bool gi_visible_from(vec3 pa, float da, vec3 b, vec3 nb, float voxel)
+{
+  vec3 pb = gi_lifted(b, nb, voxel);
+  if (length(pb - pa) < GI_HIT_VOXELS * voxel) {
+    return true;           /* before sampling b's end: the pairs closer than half a voxel (an
+                            * anti-aliasing sample's neighbours, mostly) cost no field sample */
+  }
+  float h;
+  int obj;
+  return gi_visible_between(pa, da, pb, sdf_scene(pb, h, obj), voxel);
 }
 
 bool gi_visible(vec3 a, vec3 na, vec3 b, vec3 nb, float voxel)

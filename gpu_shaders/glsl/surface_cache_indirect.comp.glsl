@@ -13,7 +13,7 @@
  * Runs over this frame's tiles (sc_pages: each with its own blend), in place: out_image holds
  * the previous E and is read and written by the same thread.
  * Inputs: texel_card, card tables and layers, sc_probes, sc_probe_sh, sc_probe_irradiance,
- * sc_probe_pos, sc_pages.
+ * sc_probe_pos, sc_probe_room (the field at each probe's lifted end), sc_pages.
  * delta_image (read-write): each texel's last update E_new - E_prev, w = 1 once written.
  * Output out_image (read-write): E.rgb (irradiance, W/m^2), w = 1 on surface texels interpolated from probes,
  * 0.5 where no probe could be used (covered texels, e.g. a floor under a wall), 0 elsewhere.
@@ -59,7 +59,8 @@ void main()
       lifted = gi_lifted(p, n, qp.w);
       room = sdf_scene(lifted, h, o);
     }
-    if (!gi_visible_from(lifted, room, qp.xyz, qi.xyz, qp.w)) {
+    if (!gi_visible_between(lifted, room, gi_lifted(qp.xyz, qi.xyz, qp.w),
+                            texelFetch(sc_probe_room, q, 0).x, qp.w)) {
       continue;
     }
     float w = (d.x == 1 ? f.x : 1.0 - f.x) * (d.y == 1 ? f.y : 1.0 - f.y) + 1e-3;

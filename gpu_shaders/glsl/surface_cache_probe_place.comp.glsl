@@ -8,7 +8,9 @@
  * the ray LOD most of them then traced nothing).
  * Inputs: texel_card, card tables and layers, the mesh SDFs, sc_pages; frame.
  * Outputs: out_image (one texel per probe): world normal xyz, w = card row + 1 (0: no probe);
- * probe_pos_out: world position xyz, w = the object's voxel.
+ * probe_pos_out: world position xyz, w = the object's voxel; probe_room_out: x = the scene
+ * field at the probe's lifted end (gi_lifted), which every visibility test against this probe
+ * reads (surface_cache_probe_sh, _indirect: gi_visible_between), sampled here once.
  */
 void main()
 {
@@ -23,11 +25,16 @@ void main()
   if (!scp_texel(probe, frame, texel, row)) {
     imageStore(out_image, probe, vec4(0.0));
     imageStore(probe_pos_out, probe, vec4(0.0));
+    imageStore(probe_room_out, probe, vec4(0.0));
     return;
   }
   vec3 p, n;
   int obj;
   scp_surface(texel, row, p, n, obj);
   imageStore(out_image, probe, vec4(n, float(row + 1)));
-  imageStore(probe_pos_out, probe, vec4(p, gi_object_voxel(obj)));
+  float voxel = gi_object_voxel(obj);
+  imageStore(probe_pos_out, probe, vec4(p, voxel));
+  float h;
+  int o;
+  imageStore(probe_room_out, probe, vec4(sdf_scene(gi_lifted(p, n, voxel), h, o), 0.0, 0.0, 0.0));
 }

@@ -15,7 +15,8 @@
  * the SH only how their normal differs from the probe's.
  * Runs over this frame's tiles (sc_pages); a neighbour in another tile keeps the rays of that
  * tile's last update, traced with that frame's jitter (sc_tile_frame).
- * Inputs: sc_rays, sc_probes, sc_probe_pos (trace outputs), sc_pages, sc_tile_frame.
+ * Inputs: sc_rays, sc_probes, sc_probe_pos (trace outputs), sc_probe_room (probe_place: the
+ * field at each probe's lifted end), sc_pages, sc_tile_frame.
  * Output out_image: SH coefficient k of probe (i, j) at texel (2 i + k % 2, 2 j + k / 2), rgb;
  * irradiance_out: E0 of probe (i, j).
  */
@@ -34,9 +35,7 @@ void main()
     float rays = 0.0;
     vec4 a = texelFetch(sc_probe_pos, probe, 0);
     vec3 lifted = gi_lifted(a.xyz, own.xyz, a.w);
-    float h;
-    int o;
-    float room = sdf_scene(lifted, h, o);   /* the field there, for every neighbour's test */
+    float room = texelFetch(sc_probe_room, probe, 0).x;   /* the field there (probe_place) */
     for (int dy = -1; dy <= 1; dy++) {
       for (int dx = -1; dx <= 1; dx++) {
         ivec2 q = probe + ivec2(dx, dy);
@@ -49,7 +48,8 @@ void main()
         }
         if (q != probe) {
           vec4 b = texelFetch(sc_probe_pos, q, 0);
-          if (!gi_visible_from(lifted, room, b.xyz, qi.xyz, a.w)) {
+          if (!gi_visible_between(lifted, room, gi_lifted(b.xyz, qi.xyz, a.w),
+                                  texelFetch(sc_probe_room, q, 0).x, a.w)) {
             continue;
           }
         }
