@@ -3,7 +3,9 @@
 Why: GLSL compilers reject `#include` without an extension, and the libraries must come before
 what uses them. Each file names the libraries it uses at its top; `source(name)` returns the
 file with every library it needs, recursively, each once, in dependency order (depth first, in
-the order the lines name them), the `#include` lines removed.
+the order the lines name them), the `#include` lines removed. So a file's own `#define`s come
+after its libraries and cannot configure them (a debug switch put at a shader's top is not seen
+by the library code it is meant for).
 """
 from __future__ import annotations
 
