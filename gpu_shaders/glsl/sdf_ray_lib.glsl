@@ -94,11 +94,12 @@ vec3 gi_lifted(vec3 a, vec3 na, float voxel)
 bool gi_visible_between(vec3 pa, float da, vec3 pb, float db, float voxel)
 {
   float shell = GI_HIT_VOXELS * voxel;
-  if (length(pb - pa) < shell) {
+  float gap = length(pb - pa);
+  if (gap < shell) {
     return true;
   }
   int obj;
-  if (da + db - 2.0 * shell >= length(pb - pa)) {
+  if (da + db - 2.0 * shell >= gap) {
     return true;           /* the two ends' empty balls, each less the hit shell, cover the
                             * segment: no sample on it can come within the shell of a surface,
                             * so the trace below would find nothing (bench/object_scaling.py:
