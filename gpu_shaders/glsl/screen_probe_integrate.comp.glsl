@@ -62,12 +62,16 @@ void main()
   float voxel = gi_object_voxel(max(obj, 0));
   /* emitters facing the pixel from under 1.5 voxels: no probe ray reaches them */
   vec3 near = sc_near_emission(p, n, voxel);
+  /* the pixel's lifted end and its field once for the four tests (gi_visible per probe sampled
+   * the same point four times) */
+  vec3 pa = gi_lifted(p, n, voxel);
+  float da = sdf_scene(pa, h, obj);
   for (int k = 0; k < 4; k++) {
     q[k] = clamp(q[k], ivec2(0), grid - 1);
     info[k] = texelFetch(probe_info, q[k], 0);
     vec3 nk = texelFetch(probe_normal, q[k], 0).xyz;
     valid[k] = info[k].w > 0.0 && dot(nk, n) > PROBE_NORMAL_MIN
-               && gi_visible(p, n, info[k].xyz, nk, voxel) ? 1.0 : 0.0;
+               && gi_visible_from(pa, da, info[k].xyz, nk, voxel) ? 1.0 : 0.0;
   }
   float depth = max(distance(p, cam_pos), 1e-4);
   float ok;

@@ -24,6 +24,8 @@ void main()
     int oo;
     sdf_scene(info.xyz, hh, oo);
     float voxel = gi_object_voxel(max(oo, 0));
+    vec3 pa = gi_lifted(info.xyz, n, voxel);     /* the probe's end, sampled once for all 8 */
+    float da = sdf_scene(pa, hh, oo);
     for (int dy = -1; dy <= 1; dy++) {
       for (int dx = -1; dx <= 1; dx++) {
         ivec2 q = pr + ivec2(dx, dy);
@@ -31,7 +33,8 @@ void main()
           continue;
         }
         vec4 qi = texelFetch(probe_info, q, 0);
-        if (qi.w > 0.0 && gi_visible(info.xyz, n, qi.xyz, texelFetch(probe_normal, q, 0).xyz, voxel)) {
+        if (qi.w > 0.0
+            && gi_visible_from(pa, da, qi.xyz, texelFetch(probe_normal, q, 0).xyz, voxel)) {
           mask |= 1 << ((dy + 1) * 3 + (dx + 1));
         }
       }
