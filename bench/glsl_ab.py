@@ -11,9 +11,15 @@ The Python side is this checkout's: only GLSL that binds the same inputs can be 
 as) other GLSL, patched into gi_settings.from_scene for the viewport (e.g. adaptive_probes=0).
 Found with it: gi_visible's corner test as twelve inlined SDF lookups cost 44% of the probe trace
 (README, frame time).
+`--objects N` renders bench/object_scaling.py's scene of N objects instead (baked at 8 voxels/m,
+viewport quality MEDIUM, Pixel Size 1, as that bench does), `--redraws R` times R redraws after
+the first (default 2; 4 covers one cycle of Spread Over 4): what grows with the object count,
+A/B under the same load. `--cpu` times CPU seconds (time.process_time: llvmpipe's threads are
+this process's) instead of wall seconds, which other jobs on a shared host move more.
 
     .venv/bin/python bench/glsl_ab.py --b /tmp/variant [--a gpu_shaders/glsl] [--rounds 2]
                                       [--viewport 640 360] [--setting FIELD=VALUE ...]
+                                      [--objects 1000 --viewport 128 128 --redraws 4]
 """
 from __future__ import annotations
 
@@ -22,6 +28,7 @@ import importlib
 import statistics
 import sys
 import tempfile
+import time
 from collections import defaultdict
 from pathlib import Path
 
@@ -107,6 +114,12 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ab_arguments(ap, rounds=2)
     ap.add_argument("--viewport", type=int, nargs=2, default=(640, 360), metavar=("W", "H"))
+    ap.add_argument("--objects", type=int, default=0,
+                    help="bench/object_scaling.py's scene of this many objects")
+    ap.add_argument("--redraws", type=int, default=2, help="timed redraws after the first")
+    ap.add_argument("--cpu", action="store_true",
+                    help="CPU seconds (llvmpipe's threads included) instead of wall time: "
+                         "less moved by other jobs on a shared host")
     args = ap.parse_args()
     folders, settings_b, both = ab_versions(args)
 
@@ -122,7 +135,15 @@ def main():
     width, height = args.viewport
     results = [defaultdict(list), defaultdict(list)]
     with tempfile.TemporaryDirectory() as tmp:
-        scene = frame_time.build_scene(Path(tmp), width, 0)
+        if args.objects:
+            import object_scaling
+            scene = object_scaling.build_scene(args.objects, width)
+            scene.lumen.bake.cache_dir = str(Path(tmp) / "cache")
+            scene.lumen.bake.voxel_density = 8.0
+            scene.render.preview_pixel_size = "1"
+            scene.lumen.engine.viewport_quality = "MEDIUM"
+        else:
+            scene = frame_time.build_scene(Path(tmp), width, 0)
         scene.render.resolution_x, scene.render.resolution_y = width, height
         scene.render.engine = "LUMEN_GI"
         if bpy.ops.lumen.bake() != {'FINISHED'}:
@@ -131,17 +152,22 @@ def main():
             for version, folder in enumerate(folders):
                 versions.use(version, folder)
                 timings = defaultdict(float)
-                undo = pass_profile.timed_dispatches(timings)
+                clock = time.process_time if args.cpu else time.perf_counter
+                undo = pass_profile.timed_dispatches(timings, clock=clock)
                 rows = []
+                last = [clock()]
 
-                def on_redraw(i, rows=rows, timings=timings):
+                def on_redraw(i, rows=rows, timings=timings, last=last, clock=clock):
                     row = dict(timings)
-                    row["(frame)"] = engine.LAST_RENDER.get("frame_seconds", 0.0)
+                    now = clock()
+                    row["(frame)"] = (now - last[0] if args.cpu
+                                      else engine.LAST_RENDER.get("frame_seconds", 0.0))
+                    last[0] = now
                     rows.append(row)
                     timings.clear()
                 try:
                     viewport_harness.run(scene, engine.LumenGIRenderEngine, width, height,
-                                         redraws=3, on_redraw=on_redraw)
+                                         redraws=1 + args.redraws, on_redraw=on_redraw)
                 finally:
                     undo()
                     versions.settings_back()
@@ -149,7 +175,9 @@ def main():
                     for k, v in row.items():
                         results[version][k].append(v)
     versions.restore()
-    print(f"viewport {width}x{height}, {args.rounds} rounds, medians (ms); B: "
+    what = f"{args.objects} objects" if args.objects else "frame_time's scene"
+    print(f"{what}, viewport {width}x{height}, {args.rounds} rounds x {args.redraws} redraws, "
+          f"medians ({'CPU ' if args.cpu else ''}ms); B: "
           f"{folders[1] if folders[1] != folders[0] else 'same GLSL'} {settings_b or ''}")
     print(f"{'pass':32s} {'A':>10s} {'B':>10s} {'B/A':>7s}")
     for k in ("(frame)",) + PASSES:

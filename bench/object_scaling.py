@@ -142,7 +142,8 @@ def measure(n: int, args, tmp: Path) -> dict:
         if "error" in R:
             raise RuntimeError(R.get("traceback", R["error"]))
         rows.append(dict(split(R), meshes_read=R.get("meshes_read", -1),
-                         draws=R.get("gbuffer_draws", 0), triangles=R.get("triangles", 0)))
+                         draws=R.get("gbuffer_draws", 0), triangles=R.get("triangles", 0),
+                         sc_tiles="{}/{}".format(*R.get("gi_sc_tiles", (0, 0)))))
         per_draw.append(dict(timings))
         timings.clear()
 
