@@ -227,10 +227,11 @@ class Progressive:
     jittered samples into a running mean, up to `samples` (the same jitters in the same order
     as F12, so a still viewport ends on the F12 image); a new view, scene or world starts
     again. A redraw takes one sample, and more while they fit in `seconds` (the engine passes
-    the last refining redraw's GI time, so an anti-aliasing redraw costs about what a refining
-    one did plus that): the 32 samples end in a few redraws, not in 32 (the open yard at 128
+    the last refining redraw's time up to its composite, so an anti-aliasing redraw costs about
+    what a refining one did plus that): the 32 samples end in a few redraws, not in 32 (the open yard at 128
     px: its GI done at ~180 redraws, its anti-aliasing past 200; now done at 182). Measured
-    at 64 px in tests/gpu/test_view_draw.py: 8 samples in 6 redraws (2, 2, 1, 1, 1, 1).
+    at 64 px in tests/gpu/test_view_draw.py: 8 samples in 6 redraws (2, 2, 1, 1, 1, 1); one a
+    redraw since a tile's later updates keep its direct light (the refining redraws got cheaper).
     At most MAX_PER_REDRAW a redraw: the seconds are the host's, which on a GPU measure only
     the submission, so without a cap a GPU would get all 32 samples in one redraw (one stall
     of 32 samples' work where the viewport should stay responsive)."""

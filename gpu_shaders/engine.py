@@ -347,7 +347,11 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        gi_probe_tile=getattr(state.probes, "tile", None),
                        gi_probe_res=getattr(state.probes, "res", None))
         if not final and not gi_out["converged"]:
-            state.refine_seconds = gi_out["timings"]["total"]
+            # the refining redraw's time so far (G-buffer, direct light, GI, composite): what a
+            # redraw of the anti-aliasing that follows may take. GI alone shrank once a tile's
+            # later updates stopped relighting its direct light, and with it the samples a
+            # redraw took
+            state.refine_seconds = time.perf_counter() - t0
         if view == "PROBE_FALLBACK":                 # a read-back only the debug view needs
             LAST_RENDER["indirect_irradiance"] = compute.read(gi_out["texture"])
         if view == "TRACE_METHOD" and getattr(state, "screen_trace", None) is not None:
@@ -368,7 +372,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
             aa_info = dict(aa_seconds=aa["seconds"], aa_samples=aa["samples"])
         elif gi_info.get("gi_converged", True) and state.direct.converged:
             # a still viewport: jittered samples, ending on the F12 image; as many a redraw as
-            # fit in the last refining redraw's GI time (one at least)
+            # fit in the last refining redraw's time (one at least)
             key = (np.asarray(view_proj, np.float64).tobytes(), width, height, state.epoch,
                    sky.key, gi_cfg.aa_samples)
             textures = state.aa.step(key, *aa_args, seconds=state.refine_seconds)

@@ -105,6 +105,14 @@ def sc_ray_lod(view_proj, cam_pos, height: int, rays_per_pixel: float):
     return (cam_pos, float(np.linalg.norm(m[1, :3]) * height / 2.0), float(rays_per_pixel))
 
 
+def _first_updates(cache, tiles) -> tuple:
+    """The part of plan()'s (tile indices, blends) that is each tile's first update since the
+    last reset (committed: update count 1)."""
+    idx, blends = tiles
+    first = cache.pages.count[idx] == 1
+    return idx[first], blends[first]
+
+
 def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_max: float,
                    width: int, height: int, changes: set, final: bool, view_proj=None,
                    gather=None, direct=None) -> dict:
@@ -155,7 +163,11 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
                      cam_pos=cam_pos, seen=seen)
         tiles = cache.plan(frame0, blend=gi.cache_blend, budget=gi.sc_tiles, history=gi.history,
                            where=where)
-    cache.light_direct(res, state.light_texture, len(state.lights), tiles=tiles)
+    # A tile's direct light changes only with what resets the cache (lights, objects, cards,
+    # sky): the viewport lights it on the tile's first update since then and keeps it for the
+    # next ones (1,000 small objects: 21 of a 212 ms still frame at 128 px, every redraw).
+    direct_tiles = tiles if final else _first_updates(cache, tiles)
+    cache.light_direct(res, state.light_texture, len(state.lights), tiles=direct_tiles)
     if scene_changed and not final:
         # the whole atlas once after a reset (combine then follows the relit tiles): the tiles
         # not yet relit show their emission at once (F12's first iteration relights them all)

@@ -95,7 +95,7 @@ class SceneState:
         self.direct = Progressive()  # the viewport's direct light, spread over redraws
         from .antialias import Progressive as ProgressiveAA
         self.aa = ProgressiveAA()    # the viewport's anti-aliasing once a still view converged
-        self.refine_seconds = 0.0    # the last refining viewport redraw's GI seconds: the AA's
+        self.refine_seconds = 0.0    # the last refining viewport redraw's seconds: the AA's
                                      # time per redraw (antialias.Progressive)
         self.epoch = 0               # depsgraph updates seen (engine.view_update) and syncs
                                      # with changes: what the progressive direct light keys on
