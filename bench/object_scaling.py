@@ -9,8 +9,10 @@ For N = 10, 100, 1000 (`--counts`) in one process, same resolution:
              Size 1, viewport quality `--quality`: one warm-up redraw (first frame: everything
              extracted and uploaded) then `--still` still redraws (default 16: four cycles of
              the default Spread Over 4, whose redraws differ in work: a median of 3 took 125 or
-             240 ms at 10 objects), their mean and median, and the split of the last still
-             frame from LAST_RENDER (extract, sync, G-buffer, direct, GI)
+             240 ms at 10 objects), their mean and median, the mean CPU time (llvmpipe's
+             threads included: other jobs on a shared host move it less than the wall time)
+             and the split of the last still frame from LAST_RENDER (extract, sync, G-buffer,
+             direct, GI)
   F12        bpy.ops.render.render at `--size`^2, render_frames = bounces = 1 (one GI iteration),
              one warm-up then `--repeat` timed, median and split
   F12 default (--default-f12) one more F12 with the engine's default GI settings (render frames,
@@ -154,6 +156,7 @@ def measure(n: int, args, tmp: Path) -> dict:
         view = dict(first=out["seconds"][0] * 1000,
                     median=statistics.median(out["seconds"][1:]) * 1000,
                     mean=statistics.fmean(out["seconds"][1:]) * 1000, split=rows[-1],
+                    cpu=statistics.fmean(out["cpu_seconds"][1:]) * 1000,
                     first_split=rows[0],
                     passes={k: statistics.fmean(r.get(k, 0.0) for r in still) * 1000
                             for k in {k for r in still for k in r}})
@@ -330,7 +333,8 @@ def main():
             v, f = r["view"], r["f12"]
             print(f"N={n:5d} ({r['triangles']} triangles, bake {r['bake']:.1f} s)", flush=True)
             print(f"  viewport {args.size}x{args.size}: first {v['first']:.1f} ms, still mean "
-                  f"{v['mean']:.1f} ms (median {v['median']:.1f}); last still split ms: "
+                  f"{v['mean']:.1f} ms (median {v['median']:.1f}, CPU mean {v['cpu']:.1f}); "
+                  f"last still split ms: "
                   f"{fmt(v['split'])}", flush=True)
             print(f"    first-frame split ms: {fmt(v['first_split'])}", flush=True)
             if f is not None:
@@ -356,7 +360,8 @@ def main():
     f12 = [r for r in results if r["f12"] is not None]
     print(f"ratio N={hi['n']} / N={lo['n']}: viewport still frame (mean of {args.still}) "
           f"{hi['view']['mean'] / lo['view']['mean']:.2f} (medians "
-          f"{hi['view']['median'] / lo['view']['median']:.2f})" + (
+          f"{hi['view']['median'] / lo['view']['median']:.2f}; CPU means "
+          f"{hi['view']['cpu'] / lo['view']['cpu']:.2f})" + (
               f", F12 N={f12[-1]['n']} / N={lo['n']} "
               f"{f12[-1]['f12']['median'] / lo['f12']['median']:.2f}" if len(f12) > 1 else ""))
     if len(f12) > 1 and "default" in f12[0]["f12"] and "default" in f12[-1]["f12"]:

@@ -13,6 +13,8 @@ calls view_update before the next view_draw.
     result = run(scene, LumenGIRenderEngine, 640, 360, redraws=4, on_redraw=callback)
     result["drawn"]     float32 [h, w, 4]: the offscreen after the last redraw (display space)
     result["seconds"]   wall time of each view_draw call
+    result["cpu_seconds"] CPU time of each (time.process_time: llvmpipe's threads are this
+                        process's), which other jobs on a shared host move less than the wall
     result["after"]     what on_redraw(i) returned after each redraw (edits it makes reach the
                         next redraw: the depsgraph is re-evaluated, as the viewport's is)
 """
@@ -68,7 +70,7 @@ def _draw(engine, depsgraph, width, height, redraws, on_redraw, until=None):
     pixels = mathutils.Matrix(((2.0 / width, 0.0, 0.0, -1.0), (0.0, 2.0 / height, 0.0, -1.0),
                                (0.0, 0.0, -1.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
     off = gpu.types.GPUOffScreen(width, height, format='RGBA16F')
-    seconds, after = [], []
+    seconds, cpu, after = [], [], []
 
     def updated(_scene, dg):
         if dg.as_pointer() == depsgraph.as_pointer():
@@ -82,9 +84,10 @@ def _draw(engine, depsgraph, width, height, redraws, on_redraw, until=None):
                 gpu.state.active_framebuffer_get().clear(color=(0.0, 0.0, 0.0, 0.0))
                 gpu.matrix.load_identity()
                 gpu.matrix.load_projection_matrix(pixels)
-                t = time.perf_counter()
+                t, c = time.perf_counter(), time.process_time()
                 engine.view_draw(ctx, depsgraph)
                 seconds.append(time.perf_counter() - t)
+                cpu.append(time.process_time() - c)     # llvmpipe's threads included
             after.append(on_redraw(i) if on_redraw else None)
             if until is not None and until(i):
                 break
@@ -96,7 +99,7 @@ def _draw(engine, depsgraph, width, height, redraws, on_redraw, until=None):
     # buffer protocol in memory order (see gpu_shaders.resources.read_texture)
     drawn = np.asarray(off.texture_color.read()).ravel(order="K").astype(np.float32)
     drawn = drawn.reshape(height, width, 4)
-    return {"drawn": drawn, "seconds": seconds, "after": after}
+    return {"drawn": drawn, "seconds": seconds, "cpu_seconds": cpu, "after": after}
 
 
 def run(scene, base, width: int, height: int, redraws: int = 1, on_redraw=None,
