@@ -517,6 +517,26 @@ def _probe_atlas_image(state, width, height):
     return img
 
 
+def border_rect(render, width: int, height: int, size=None) -> tuple:
+    """(x0, y0, x1, y1): the pixels of a width x height render that Blender's render result
+    holds: the render border's (Render Region), else the whole image. The frame is rendered
+    whole and this part written (rows bottom-up, as Blender's). The edges as Blender's render
+    pipeline makes them: border x size in float32, truncated (in double, 0.7 x 710 gave 496
+    where Blender has 497). size: the result's (w, h), which wins if they disagree."""
+    if not getattr(render, "use_border", False):
+        return 0, 0, width, height
+
+    def span(lo, hi, n, want):
+        a, b = (int(np.float32(v) * np.float32(n)) for v in (lo, hi))
+        a = min(max(a, 0), n - 1)
+        b = a + want if want else b
+        return a, max(min(b, n), a + 1)
+
+    x0, x1 = span(render.border_min_x, render.border_max_x, width, size and size[0])
+    y0, y1 = span(render.border_min_y, render.border_max_y, height, size and size[1])
+    return x0, y0, x1, y1
+
+
 class LumenGIRenderEngine(bpy.types.RenderEngine):
     """Lumen GI preview engine: G-buffer + SDF direct light, or an SDF trace debug view."""
 
@@ -563,7 +583,10 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             gc.collect()
         rl = result.layers[0]
         written = []
+        x0, y0, x1, y1 = border_rect(scene.render, width, height,
+                                     (result.resolution_x, result.resolution_y))
         for name, rgba in passes.items():
+            rgba = rgba[y0:y1, x0:x1]      # a render border: Blender's result is only that part
             rp = rl.passes.find_by_name(name, "") if hasattr(rl.passes, "find_by_name") else None
             rp = rp or rl.passes.get(name)
             if rp is None:
