@@ -413,7 +413,8 @@ def _visible(inst, view_layer):
 
 
 def mesh_instances(depsgraph, view_layer=None):
-    """(depsgraph instance, its name) of every visible mesh instance, in depsgraph order.
+    """(depsgraph instance, its name) of every visible mesh instance that has faces, in
+    depsgraph order.
 
     Names are the object's name, or `instancer/source.N` for instances, so errors and stats
     can point at what the user sees in the outliner. The bake's instances and every frame's
@@ -424,6 +425,11 @@ def mesh_instances(depsgraph, view_layer=None):
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type != 'MESH' or not _visible(inst, view_layer):
+            continue
+        if obj.data is not None and len(obj.data.polygons) == 0:
+            # no surface (a geometry-nodes scatter's points, whose instances come as their
+            # own entries; a vertex or edge helper): Cycles draws nothing of it, and the bake
+            # refused the whole scene over it ("mesh has no faces")
             continue
         source = obj.original
         if inst.is_instance:
@@ -442,6 +448,9 @@ def instance_matrices(depsgraph, view_layer=None) -> dict:
             for inst, name in mesh_instances(depsgraph, view_layer)}
 
 
+GEOMETRY_TYPES = ('MESH', 'META', 'CURVE', 'FONT', 'SURFACE')   # evaluate to meshes we bake
+
+
 def _is_viewport_node(tree, seen) -> bool:
     if tree is None or tree.as_pointer() in seen:
         return False
@@ -452,9 +461,18 @@ def _is_viewport_node(tree, seen) -> bool:
 
 
 def renders_differently(obj) -> bool:
-    """Whether an object's modifiers evaluate differently in F12 than in the viewport (what the
-    bake sees): one shown in only one of them, subdivision or multires render levels, or
-    geometry nodes that ask Is Viewport."""
+    """Whether an object evaluates differently in F12 than in the viewport (what the bake
+    sees): a modifier shown in only one of them, subdivision or multires render levels,
+    geometry nodes that ask Is Viewport, or a metaball's, curve's, text's or surface's own
+    render resolution (a metaball's default is twice as fine as its viewport's)."""
+    data = getattr(obj, "data", None)
+    if obj.type == 'META' and data is not None and data.render_resolution != data.resolution:
+        return True
+    if obj.type in ('CURVE', 'FONT', 'SURFACE') and data is not None:
+        for axis in ("u", "v") if obj.type == 'SURFACE' else ("u",):
+            render = getattr(data, f"render_resolution_{axis}", 0)
+            if render and render != getattr(data, f"resolution_{axis}", render):
+                return True
     for mod in getattr(obj, "modifiers", ()):
         if mod.show_viewport != mod.show_render:
             return True
@@ -466,13 +484,13 @@ def renders_differently(obj) -> bool:
 
 
 def render_only_geometry(depsgraph) -> set:
-    """Names of the mesh objects whose F12 geometry is not what the bake saw (a render
+    """Names of the objects whose F12 geometry is not what the bake saw (a render
     depsgraph evaluates modifiers at render settings; the bake, a viewport one): staleness
     cannot judge their content there. Empty for a viewport depsgraph."""
     if getattr(depsgraph, "mode", "VIEWPORT") != 'RENDER':
         return set()
     return {ob.original.name for ob in depsgraph.objects
-            if ob.type == 'MESH' and renders_differently(ob.original)}
+            if ob.type in GEOMETRY_TYPES and renders_differently(ob.original)}
 
 
 def extract_scene(depsgraph, view_layer=None):

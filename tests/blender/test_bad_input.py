@@ -47,8 +47,6 @@ def assert_refused(r, *words):
 @pytest.mark.parametrize("setup, words", [
     pytest.param("for o in list(bpy.data.objects): bpy.data.objects.remove(o)",
                  ["no visible mesh objects"], id="empty-scene"),
-    pytest.param("loose_vertices('LooseVerts')", ["LooseVerts", "no faces"],
-                 id="vertices-without-faces"),
     pytest.param("set_nan_vertex(cube('NaNCube', location=(3, 0, 0)))", ["NaNCube", "NaN"],
                  id="nan-vertices"),
     pytest.param("flat = cube('Flat', location=(6, 0, 0)); "
@@ -81,3 +79,27 @@ def test_unwritable_cache_folder_is_reported_and_nothing_changes(blender, tmp_pa
     r, _ = run_case(blender, tmp_path, f"scene.lumen.bake.cache_dir = {str(afile / 'cache')!r}")
     assert_refused(r, str(afile / "cache"))
     assert afile.read_text() == "not a folder"
+
+
+def test_objects_without_faces_are_left_out_and_the_rest_bakes(blender, tmp_path):
+    # a vertex-only helper and a geometry-nodes scatter, whose own mesh is empty and whose
+    # instances are the surface: the whole bake was refused ("mesh has no faces")
+    setup = """
+loose_vertices('LooseVerts')
+grid = cube('Scatter', location=(4, 0, 0))
+tree = bpy.data.node_groups.new('Scatter', 'GeometryNodeTree')
+tree.interface.new_socket('Geometry', in_out='INPUT', socket_type='NodeSocketGeometry')
+tree.interface.new_socket('Geometry', in_out='OUTPUT', socket_type='NodeSocketGeometry')
+n_in, n_out = tree.nodes.new('NodeGroupInput'), tree.nodes.new('NodeGroupOutput')
+inst = tree.nodes.new('GeometryNodeInstanceOnPoints')
+tree.links.new(n_in.outputs[0], inst.inputs['Points'])
+tree.links.new(tree.nodes.new('GeometryNodeMeshCube').outputs['Mesh'], inst.inputs['Instance'])
+tree.links.new(inst.outputs['Instances'], n_out.inputs[0])
+grid.modifiers.new('Scatter', 'NODES').node_group = tree
+"""
+    r, _ = run_case(blender, tmp_path, setup)
+    assert r["result"] == ["FINISHED"] and r["error"] is None, r
+    assert "Box" in r["objects"] and "LooseVerts" not in r["objects"], r["objects"]
+    scattered = [n for n in r["objects"] if n.startswith("Scatter/")]
+    assert len(scattered) == 8, r["objects"]        # one cube per corner of the cube
+    assert "Scatter" not in r["objects"]
