@@ -161,3 +161,54 @@ def test_viewport_lists_changes_and_hashes_only_what_changed(tmp_path):
     assert lines["Lumen GI: 3 objects changed since the bake: press Bake"] == len(refining)
     assert not any("changed" in text for text, _ in still["messages"])
     assert panel[0] == "3 objects changed since the bake:" and "Floor" in " ".join(panel)
+
+
+CONVERTED = """
+from lumen_gi.gpu_shaders import engine
+
+scene = empty_scene(voxel_density=10.0, cache_dir="cache")
+bpy.ops.mesh.primitive_plane_add(size=5.0)
+bpy.ops.object.metaball_add(type='BALL', location=(0.0, 0.0, 0.8))
+ball = bpy.context.object
+bpy.ops.curve.primitive_bezier_circle_add(location=(1.0, 1.0, 0.5))
+ring = bpy.context.object
+ring.data.bevel_depth = 0.1
+ring.data.render_resolution_u = 24          # finer in F12 than the viewport's 12
+bpy.ops.object.text_add(location=(-2.0, -1.0, 0.1))
+bpy.context.object.data.extrude = 0.1
+sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
+sun.rotation_euler = (0.7, 0.0, 0.6)
+aimed_camera((0.0, -4.0, 5.0), (0.0, 0.0, 0.0))
+scene.render.engine = "LUMEN_GI"
+scene.lumen.engine.render_quality = "OFF"
+scene.render.resolution_x = scene.render.resolution_y = 32
+res, err = bake()
+assert err is None, err
+bpy.ops.render.render()
+R = engine.LAST_RENDER
+assert "error" not in R, R.get("traceback", R.get("error"))
+from lumen_gi.lumen_addon.cache import read_cache
+out = dict(baked=[i.name for i in read_cache("cache").instances], stale=R["stale"],
+           meta=(ball.data.resolution, ball.data.render_resolution))
+ball.data.resolution = ball.data.render_resolution   # both now differ from the bake's
+ring.data.render_resolution_u = 0
+ring.data.resolution_u = 6
+bpy.ops.render.render()
+out["edited"] = engine.LAST_RENDER["stale"]
+out["names"] = [ball.name, ring.name]
+emit(**out)
+"""
+
+
+def test_metaball_curve_and_text_are_not_changed_by_their_render_resolution(tmp_path):
+    # a metaball evaluates twice as fine in F12 as in the viewport the bake saw (and a curve
+    # may): F12 listed the freshly baked metaball as "changed since the bake"
+    res = run_python(CONVERTED, tmp_path, timeout=300)
+    assert res.returncode == 0, res.explain()
+    r = res.result
+    assert r["meta"][0] != r["meta"][1], r["meta"]       # Blender's defaults differ
+    assert len(r["baked"]) == 4, r["baked"]                  # plane, metaball, curve, text
+    assert r["stale"] == [], r
+    # with render and viewport resolutions equal, F12 judges their content again: both were
+    # made coarser or finer than the bake
+    assert sorted(n.split("/")[0] for n in r["edited"]) == sorted(r["names"]), r
