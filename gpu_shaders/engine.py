@@ -238,7 +238,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     reads the passes it writes, the viewport draws Combined), or `shown` (numpy) for a debug
     view. Fills LAST_RENDER with the frame's numbers (and images only when KEEP_IMAGES)."""
     from ..lumen_addon import staleness
-    from ..operators.extract import render_only_geometry
+    from ..operators.extract import hidden_renderable, render_only_geometry
     from ..operators.world_capture import world_light
     from . import composite, compute, direct_light, gi, gi_methods, gi_settings, mesh_batches
 
@@ -403,6 +403,17 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         direct_part=out.get("part", (0, direct_light.LIGHT_SAMPLES)),
         gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, reused_frame=False, **gi_info,
         **aa_info)
+    if stale:
+        # F12 draws what the viewport hides (the eye, Disable in Viewports); the bake, made from
+        # the viewport, cannot hold those until they are shown
+        hidden = (set(hidden_renderable(scene.view_layers[depsgraph.view_layer.name]))
+                  if final and depsgraph.view_layer.name in scene.view_layers else set())
+        unseen = [n for n in stale if staleness.name_parts(n) & hidden]
+        stale = [n for n in stale if n not in unseen]
+        if unseen:
+            LAST_RENDER["notes"].append(
+                staleness.summary(unseen, what="hidden in the viewport, so not baked")
+                + ": drawn without their shadows and bounce light; show them and press Bake")
     if stale:
         LAST_RENDER["notes"].append(staleness.summary(stale) + ": drawn, but their light and "
                                     "shadows are the bake's; press Bake")

@@ -122,10 +122,10 @@ class StaleCheck:
         return out
 
 
-def summary(names, limit: int = 3) -> str:
+def summary(names, limit: int = 3, what: str = "changed since the bake") -> str:
     """'3 objects changed since the bake (Box, Ball, Cone)'; '' when none."""
     if not names:
         return ""
     shown = ", ".join(names[:limit]) + (f" and {len(names) - limit} more" if len(names) > limit
                                         else "")
-    return f"{len(names)} object{'s' if len(names) != 1 else ''} changed since the bake ({shown})"
+    return f"{len(names)} object{'s' if len(names) != 1 else ''} {what} ({shown})"

@@ -421,10 +421,14 @@ def mesh_instances(depsgraph, view_layer=None):
     placement use these names: an instance whose name the scene no longer yields has left it.
     """
     view_layer = view_layer or depsgraph.view_layer
+    # F12's depsgraph holds what renders (objects hidden in the viewport only, by the eye or
+    # Disable in Viewports, render in Cycles and EEVEE: F12 dropped them)
+    rendering = getattr(depsgraph, "mode", "VIEWPORT") == 'RENDER'
     counts = {}         # instancer name -> instances seen
     for inst in depsgraph.object_instances:
         obj = inst.object
-        if obj.type != 'MESH' or not _visible(inst, view_layer):
+        if obj.type != 'MESH' or not (inst.is_instance or inst.show_self if rendering
+                                      else _visible(inst, view_layer)):
             continue
         if obj.data is not None and len(obj.data.polygons) == 0:
             # no surface (a geometry-nodes scatter's points, whose instances come as their
@@ -522,7 +526,21 @@ def extract_scene(depsgraph, view_layer=None):
             normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
             materials=data.materials,
             camera_visible=bool(getattr(source, "visible_camera", True))))
+    if getattr(depsgraph, "mode", "VIEWPORT") != 'RENDER':
+        for name in hidden_renderable(view_layer or depsgraph.view_layer):
+            ex.warn(name, "hidden in the viewport, so not baked; F12 renders it without its "
+                          "shadows and bounce light: show it and press Bake")
     return out, ex.warnings()
+
+
+def hidden_renderable(view_layer) -> list:
+    """Names of the objects that F12 renders but the viewport hides (the eye, Disable in
+    Viewports): a viewport depsgraph does not evaluate them, so the bake cannot hold them."""
+    return [obj.name for obj in view_layer.objects
+            if obj.type in GEOMETRY_TYPES and not obj.hide_render
+            and not obj.visible_get(view_layer=view_layer)
+            and all(not c.hide_render for c in obj.users_collection)
+            and not (obj.type == 'MESH' and not obj.modifiers and not obj.data.polygons)]
 
 
 def mesh_key(inst) -> tuple:

@@ -226,6 +226,17 @@ def hidden_and_holdout(bpy):
     layer.use = True
 
 
+@case
+def hidden_in_viewport_only(bpy):
+    # the eye (hide_set) and the monitor (hide_viewport) hide an object in the viewport only:
+    # Cycles and EEVEE render it in F12
+    base(bpy)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 0.5))
+    bpy.context.object.hide_set(True)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(1.5, 0.0, 0.5))
+    bpy.context.object.hide_viewport = True
+
+
 def finite(img) -> bool:
     return img is None or bool(np.isfinite(np.asarray(img, np.float64)).all())
 
@@ -254,6 +265,8 @@ def run_case(name, fn, size, tmp: Path, engine) -> dict:
         if "Combined" not in R.get("passes_written", []):
             raise RuntimeError(f"F12 wrote no Combined pass: {R.get('passes_written')}")
         out["f12"] = "ok"
+        out["notes"].append(f"F12 drew {R.get('gbuffer_draws')} meshes, "
+                            f"{R.get('triangles')} triangles")
         out["finite"] &= all(finite(R.get(k)) for k in ("combined", "direct", "indirect"))
         out["notes"] += [n for n in R.get("notes", [])][:3]
         drawn = viewport_harness.run(scene, engine.LumenGIRenderEngine, size, size, redraws=2)

@@ -212,3 +212,46 @@ def test_metaball_curve_and_text_are_not_changed_by_their_render_resolution(tmp_
     # with render and viewport resolutions equal, F12 judges their content again: both were
     # made coarser or finer than the bake
     assert sorted(n.split("/")[0] for n in r["edited"]) == sorted(r["names"]), r
+
+
+HIDDEN = """
+from lumen_gi.gpu_shaders import engine
+
+scene = empty_scene(voxel_density=10.0, cache_dir="cache")
+bpy.ops.mesh.primitive_plane_add(size=5.0)
+eye = cube("Eye", 0.8, (-1.0, 0.0, 0.4))
+eye.hide_set(True)                            # the outliner's eye: the viewport only
+monitor = cube("Monitor", 0.8, (1.0, 0.0, 0.4))
+monitor.hide_viewport = True                  # Disable in Viewports
+gone = cube("NotRendered", 0.8, (0.0, 1.2, 0.4))
+gone.hide_render = True
+gone.hide_set(True)
+sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
+sun.rotation_euler = (0.7, 0.0, 0.6)
+aimed_camera((0.0, -4.0, 5.0), (0.0, 0.0, 0.0))
+scene.render.engine = "LUMEN_GI"
+scene.lumen.engine.render_quality = "OFF"
+scene.render.resolution_x = scene.render.resolution_y = 32
+res, err = bake()
+assert err is None, err
+from lumen_gi.lumen_addon.cache import read_cache
+bpy.ops.render.render()
+R = engine.LAST_RENDER
+assert "error" not in R, R.get("traceback", R.get("error"))
+emit(baked=[i.name for i in read_cache("cache").instances], draws=R["gbuffer_draws"],
+     notes=R["notes"])
+"""
+
+
+def test_f12_renders_what_the_viewport_hides_and_says_it_is_not_baked(tmp_path):
+    # Cycles and EEVEE render objects hidden only in the viewport; F12 dropped them silently
+    res = run_python(HIDDEN, tmp_path, timeout=300)
+    assert res.returncode == 0, res.explain()
+    r = res.result
+    assert r["baked"] == ["Plane"], r                  # a viewport depsgraph does not hold them
+    assert "hidden in the viewport, so not baked" in res.stdout      # the bake says so
+    assert r["draws"] == 3, r                          # plane, Eye, Monitor; not NotRendered
+    note = [n for n in r["notes"] if "hidden in the viewport" in n]
+    assert len(note) == 1 and note[0].startswith("2 objects") and "Eye" in note[0] \
+        and "Monitor" in note[0], r["notes"]
+    assert not any("changed since the bake" in n for n in r["notes"]), r["notes"]
