@@ -392,7 +392,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     LAST_RENDER.update(
         view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
         gi_method=method.method,
-        sky=sky.mean, sun=sky_maps.sun, notes=list(warnings) + sky_notes + method_notes + [
+        sky=sky.mean, sun=sky_maps.sun, notes=[f"{name}: {message}" for name, message in warnings] + sky_notes + method_notes + [
             f"{name}: its transform cannot be inverted (a scale of 0?): it casts and bounces no "
             f"light" for name in state.left_out], triangles=gbuf["triangles"],
         gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
@@ -579,6 +579,10 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             passes = {name: fr.pass_array(name)
                       for name in ("Combined",) + tuple(p[0] for p in PASSES)
                       if name == "Combined" or fr.textures}
+            if getattr(scene.camera.data, "type", "PERSP") == 'PANO':
+                LAST_RENDER.setdefault("notes", []).append(
+                    f"camera {scene.camera.name!r} is panoramic: rendered as a perspective "
+                    f"camera of its lens (Cycles renders panoramas)")
             for note in LAST_RENDER.get("notes", []):
                 self.report({'WARNING'}, f"Lumen GI: {note}")
         except Exception as exc:   # reported, never raised into Blender's render job

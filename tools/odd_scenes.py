@@ -237,6 +237,109 @@ def hidden_in_viewport_only(bpy):
     bpy.context.object.hide_viewport = True
 
 
+@case
+def camera_shift_panorama_units(bpy):
+    scene = base(bpy)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 0.5))
+    cam = scene.camera.data
+    cam.shift_x, cam.shift_y = 0.3, -0.2
+    cam.sensor_fit = 'VERTICAL'
+    cam.lens_unit = 'FOV'
+    cam.angle = 1.2
+    scene.unit_settings.scale_length = 0.01
+    scene.render.resolution_y = 31                    # odd and non-square
+
+
+@case
+def panoramic_camera(bpy):
+    scene = base(bpy)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 0.5))
+    scene.camera.data.type = 'PANO'
+
+
+@case
+def particle_instances_and_animation(bpy):
+    scene = base(bpy)
+    bpy.ops.mesh.primitive_ico_sphere_add(radius=0.1, location=(0.0, 0.0, -5.0))
+    pebble = bpy.context.object
+    bpy.ops.mesh.primitive_plane_add(size=3.0, location=(0.0, 0.0, 0.05))
+    emitter = bpy.context.object
+    emitter.modifiers.new("Hair", 'PARTICLE_SYSTEM')
+    ps = emitter.particle_systems[0].settings
+    ps.type = 'HAIR'
+    ps.count = 50
+    ps.render_type = 'OBJECT'
+    ps.instance_object = pebble
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(1.0, 1.0, 0.25))
+    box = bpy.context.object
+    box.keyframe_insert("location", frame=1)
+    box.location.x = -1.0
+    box.keyframe_insert("location", frame=20)
+    scene.frame_set(10)
+
+
+@case
+def materials_of_every_kind(bpy):
+    base(bpy)
+    specs = [("Glass", {"Transmission Weight": 1.0}), ("HalfAlpha", {"Alpha": 0.3}),
+             ("Metal", {"Metallic": 1.0, "Roughness": 0.1}), ("Hot", {"Emission Strength": 50.0})]
+    for i, (name, inputs) in enumerate(specs):
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(i - 1.5, 0.0, 0.4))
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        bsdf = mat.node_tree.nodes["Principled BSDF"]
+        for k, v in inputs.items():
+            if k in bsdf.inputs:
+                bsdf.inputs[k].default_value = v
+        if name == "Hot":
+            bsdf.inputs["Emission Color"].default_value = (1.0, 0.5, 0.1, 1.0)
+        bpy.context.object.data.materials.append(mat)
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(0.0, 1.5, 0.25))
+    obj = bpy.context.object
+    obj.data.materials.append(None)                     # an empty slot
+    mat = bpy.data.materials.new("Attr")
+    mat.use_nodes = True
+    attr = mat.node_tree.nodes.new("ShaderNodeVertexColor")
+    mat.node_tree.links.new(attr.outputs["Color"],
+                            mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+    obj.data.materials.append(mat)
+    img = bpy.data.images.new("Tiles", 8, 8, tiled=True)
+    mat2 = bpy.data.materials.new("UDIM")
+    mat2.use_nodes = True
+    tex = mat2.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    mat2.node_tree.links.new(tex.outputs["Color"],
+                             mat2.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(-1.0, 1.5, 0.25))
+    bpy.context.object.data.materials.append(mat2)
+
+
+@case
+def sky_texture_world(bpy):
+    scene = base(bpy, sun=False)
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, 0.0, 0.5))
+    world = bpy.data.worlds.new("Sky")
+    world.use_nodes = True
+    sky = world.node_tree.nodes.new("ShaderNodeTexSky")
+    world.node_tree.links.new(sky.outputs["Color"],
+                              world.node_tree.nodes["Background"].inputs["Color"])
+    scene.world = world
+
+
+@case
+def two_view_layers(bpy):
+    scene = base(bpy)
+    coll = bpy.data.collections.new("Extra")
+    scene.collection.children.link(coll)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 0.5))
+    obj = bpy.context.object
+    for c in obj.users_collection:
+        c.objects.unlink(obj)
+    coll.objects.link(obj)
+    second = scene.view_layers.new("Second")
+    second.layer_collection.children["Extra"].exclude = True
+
+
 def finite(img) -> bool:
     return img is None or bool(np.isfinite(np.asarray(img, np.float64)).all())
 

@@ -228,7 +228,8 @@ gone.hide_render = True
 gone.hide_set(True)
 sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
 sun.rotation_euler = (0.7, 0.0, 0.6)
-aimed_camera((0.0, -4.0, 5.0), (0.0, 0.0, 0.0))
+cam = aimed_camera((0.0, -4.0, 5.0), (0.0, 0.0, 0.0))
+bpy.data.objects["Plane"].data.materials.append(None)     # a warning F12 reports too
 scene.render.engine = "LUMEN_GI"
 scene.lumen.engine.render_quality = "OFF"
 scene.render.resolution_x = scene.render.resolution_y = 32
@@ -238,8 +239,12 @@ from lumen_gi.lumen_addon.cache import read_cache
 bpy.ops.render.render()
 R = engine.LAST_RENDER
 assert "error" not in R, R.get("traceback", R.get("error"))
-emit(baked=[i.name for i in read_cache("cache").instances], draws=R["gbuffer_draws"],
-     notes=R["notes"])
+out = dict(baked=[i.name for i in read_cache("cache").instances], draws=R["gbuffer_draws"],
+           notes=R["notes"])
+cam.data.type = 'PANO'
+bpy.ops.render.render()
+out["pano_notes"] = engine.LAST_RENDER["notes"]
+emit(**out)
 """
 
 
@@ -255,3 +260,8 @@ def test_f12_renders_what_the_viewport_hides_and_says_it_is_not_baked(tmp_path):
     assert len(note) == 1 and note[0].startswith("2 objects") and "Eye" in note[0] \
         and "Monitor" in note[0], r["notes"]
     assert not any("changed since the bake" in n for n in r["notes"]), r["notes"]
+    # notes are sentences naming the object (a material warning was a Python tuple's repr)
+    assert all(isinstance(n, str) for n in r["notes"]), r["notes"]
+    assert "Plane: material slot 1 is empty; using default grey" in r["notes"], r["notes"]
+    # a camera we cannot render as Cycles does is named
+    assert any("'Cam' is panoramic" in n for n in r["pano_notes"]), r["pano_notes"]
