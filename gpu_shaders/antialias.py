@@ -150,7 +150,8 @@ class Supersampler:
             new = textures.get(name)
             if new is not None:
                 self.means[name], _ = accumulate(self.means.get(name), new, 1.0 / self.count,
-                                                 self.width, self.height, 0)
+                                                 self.width, self.height, 0,
+                                                 mix_alpha=name == "Combined")   # coverage
 
 
 def resolve_indirect(resources, gbuf: dict, base: dict, e_base, jitter, foot, cam_pos,

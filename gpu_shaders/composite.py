@@ -7,7 +7,8 @@ from . import compute
 COMPOSITE = compute.Pass("composite",
                          samplers=("gbuf_position", "gbuf_albedo", "gbuf_emission", "direct",
                                    "indirect"),
-                         images=("out_image", "indirect_out"), push=(('MAT4', 'inv_view_proj'),))
+                         images=("out_image", "indirect_out"),
+                         push=(('MAT4', 'inv_view_proj'), ('FLOAT', 'film_alpha')))
 
 
 def composite(gbuf: dict, direct_tex, indirect_tex, sky, inv_view_proj, width: int,
@@ -19,5 +20,6 @@ def composite(gbuf: dict, direct_tex, indirect_tex, sky, inv_view_proj, width: i
     indirect = compute.texture((width, height))
     COMPOSITE.run((width, height), sky=sky, gbuf_position=g["position"], gbuf_albedo=g["albedo"],
                   gbuf_emission=g["emission"], direct=direct_tex, indirect=indirect_tex,
-                  inv_view_proj=inv_view_proj, out_image=combined, indirect_out=indirect)
+                  inv_view_proj=inv_view_proj, film_alpha=float(getattr(sky, "film_alpha", 1.0)),
+                  out_image=combined, indirect_out=indirect)
     return {"textures": {"combined": combined, "indirect": indirect}}

@@ -296,6 +296,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         gi_cfg = dataclasses.replace(gi_cfg, pixel_size=int(pixel_size))
     method, method_notes = gi_methods.from_scene(engine_settings(scene))   # gi_methods.METHODS
     sky = state.sky
+    sky.film_alpha = 0.0 if getattr(scene.render, "film_transparent", False) else 1.0
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
     if state.mesh_batches is None:
         state.mesh_batches = mesh_batches.MeshBatches()

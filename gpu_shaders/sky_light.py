@@ -14,6 +14,9 @@ class SkyLight:
         self.texture = None
         self.maps = None
         self.uploads = 0
+        # the background's alpha: 0 with Film > Transparent (the engine sets it per frame),
+        # whose background shows nothing (rgb 0: Combined is premultiplied, as Cycles')
+        self.film_alpha = 1.0
 
     @staticmethod
     def declare(info, first_slot: int) -> int:

@@ -38,7 +38,7 @@ RESOLVE = compute.Pass("ssgi_resolve", samplers=GBUF + ("hits", "colour"),
                        push=(('MAT4', 'view_proj'), ('VEC3', 'cam_pos'), ('INT', 'rays'),
                              ('INT', 'reuse'), ('FLOAT', 'cone_tan')))
 ACCUMULATE = compute.Pass("gi_accumulate", samplers=("e_new", "e_history"),
-                          push=(('FLOAT', 'blend'),))
+                          push=(('FLOAT', 'blend'), ('INT', 'mix_alpha')))
 
 
 def cone_tan(rays: int, reuse: int) -> float:
@@ -131,11 +131,13 @@ class SSGI:
         return out
 
 
-def accumulate(history, new, blend: float, width: int, height: int, frames: int):
-    """(mix(history, new, blend), frames in it): blend >= 1 or no history starts again."""
+def accumulate(history, new, blend: float, width: int, height: int, frames: int,
+               mix_alpha: bool = False):
+    """(mix(history, new, blend), frames in it): blend >= 1 or no history starts again. The
+    alpha is new's (a flag), or with mix_alpha mixed as the colour."""
     if history is None or blend >= 1.0:
         return new, 1
     out = compute.texture((width, height))
     ACCUMULATE.run((width, height), e_new=new, e_history=history, blend=float(blend),
-                   out_image=out)
+                   mix_alpha=int(mix_alpha), out_image=out)
     return out, frames + 1

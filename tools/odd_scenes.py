@@ -340,6 +340,15 @@ def two_view_layers(bpy):
     second.layer_collection.children["Extra"].exclude = True
 
 
+@case
+def stereo_and_transparent_film(bpy):
+    scene = base(bpy, floor=False)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 0.5))
+    scene.render.use_multiview = True
+    scene.render.views_format = 'STEREO_3D'
+    scene.render.film_transparent = True
+
+
 def finite(img) -> bool:
     return img is None or bool(np.isfinite(np.asarray(img, np.float64)).all())
 
@@ -370,6 +379,10 @@ def run_case(name, fn, size, tmp: Path, engine) -> dict:
         out["f12"] = "ok"
         out["notes"].append(f"F12 drew {R.get('gbuffer_draws')} meshes, "
                             f"{R.get('triangles')} triangles")
+        if scene.render.film_transparent and R.get("combined") is not None:
+            a = np.asarray(R["combined"])[..., 3]
+            out["notes"].append(f"transparent film: Combined alpha min {a.min():.2f} max "
+                                f"{a.max():.2f} (background pixels should be 0)")
         out["finite"] &= all(finite(R.get(k)) for k in ("combined", "direct", "indirect"))
         out["notes"] += [n for n in R.get("notes", [])][:3]
         drawn = viewport_harness.run(scene, engine.LumenGIRenderEngine, size, size, redraws=2)

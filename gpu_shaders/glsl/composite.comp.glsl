@@ -3,7 +3,8 @@
 /* Composite: Combined = albedo * (Diffuse Direct + Diffuse Indirect) + emission (Cycles' passes:
  * Diffuse Direct / Indirect = E / pi without the albedo), the world on the background.
  * Inputs: gbuf_position, gbuf_albedo, gbuf_emission, direct (E_direct / pi), indirect (E_indirect,
- * irradiance); sky_maps (sky_lib.glsl), inv_view_proj (camera_lib.glsl).
+ * irradiance); sky_maps (sky_lib.glsl), inv_view_proj (camera_lib.glsl), film_alpha (0: Film >
+ * Transparent, the background rgba 0; the anti-aliasing's mean of samples makes edges partial).
  * Outputs: out_image = Combined, indirect_out = E_indirect / pi.
  */
 #define PI 3.14159265358979
@@ -18,7 +19,7 @@ void main()
   if (texelFetch(gbuf_position, px, 0).w < 0.5) {
     vec3 ro, rd;
     camera_ray(px, size, ro, rd);
-    imageStore(out_image, px, vec4(sky_background(rd), 1.0));
+    imageStore(out_image, px, vec4(sky_background(rd), 1.0) * film_alpha);
     imageStore(indirect_out, px, vec4(0.0, 0.0, 0.0, 1.0));
     return;
   }

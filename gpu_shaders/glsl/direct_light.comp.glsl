@@ -9,7 +9,8 @@
  * (RGBA32F, 4 texels per light row, operators/lights.py; a sun taken out of the world's map is
  * one of them), sky_maps (the world), push constants light_count, cam_pos (world), sky_cones
  * (number of sky occlusion cones), inv_view_proj (camera rays for the background),
- * sample_plan = light_samples + 256 * first + 65536 * take + 16777216 * mode: samples per light,
+ * sample_plan = light_samples + 256 * first + 65536 * take + 16777216 * mode
+ * + 268435456 * transparent (Film > Transparent: the background rgba 0): samples per light,
  * and the part of them and of the sky cones this dispatch evaluates (first 0, take light_samples:
  * all; one int keeps the push constants within 128 bytes); mode 1 also stores the one-sample
  * lights' (suns, lights without radius: light_single) E in single_out, mode 2 reads it from
@@ -85,7 +86,8 @@ void main()
     imageStore(direct_out, px, vec4(0.0, 0.0, 0.0, 1.0));
     vec3 ro, rd;
     camera_ray(px, size, ro, rd);
-    imageStore(combined_out, px, vec4(sky_background(rd), 1.0));
+    /* Film > Transparent: nothing (rgba 0) where no surface is */
+    imageStore(combined_out, px, sample_plan >= 268435456 ? vec4(0.0) : vec4(sky_background(rd), 1.0));
     return;
   }
   vec3 p = pos.xyz;
@@ -96,7 +98,7 @@ void main()
   int light_samples = sample_plan % 256;
   int sample_first = (sample_plan / 256) % 256;
   int sample_take = (sample_plan / 65536) % 256;
-  int mode = sample_plan / 16777216;
+  int mode = (sample_plan / 16777216) % 16;
   vec3 E = vec3(0.0);
   vec3 E_single = vec3(0.0);
   for (int i = 0; i < light_count; i++) {

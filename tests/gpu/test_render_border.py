@@ -66,3 +66,53 @@ def test_render_border_writes_the_border_pixels_of_the_full_render(tmp_path):
     border = read_pass(tmp_path / "border.exr", "Combined")
     assert border.shape == full.shape
     assert np.abs(border[y0:y0 + h, x0:x0 + w] - cropped).max() < 1e-5
+
+
+FILM = """
+from lumen_gi.gpu_shaders import engine
+
+scene = empty_scene(voxel_density=10.0, cache_dir="cache")
+cube("Box", 1.0, (0.0, 0.0, 0.5))
+sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
+sun.rotation_euler = (0.6, 0.3, 0.0)
+aimed_camera((0.0, -5.0, 4.0), (0.0, 0.0, 0.3))
+scene.world = bpy.data.worlds.new("World")
+scene.world.use_nodes = True
+scene.world.node_tree.nodes["Background"].inputs[0].default_value = (0.2, 0.3, 0.5, 1.0)
+scene.render.engine = "LUMEN_GI"
+scene.lumen.engine.render_quality = "LOW"
+scene.lumen.engine.render_frames = 1
+scene.lumen.engine.aa_samples = 8
+scene.render.resolution_x = scene.render.resolution_y = 40
+out = {"bake": bake()}
+for transparent in (False, True):
+    scene.render.film_transparent = transparent
+    bpy.ops.render.render()
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    np.save(f"combined_{int(transparent)}.npy", R["combined"])
+    np.save("position.npy", R["position"])
+emit(**out)
+"""
+
+
+def test_transparent_film_gives_coverage_alpha_and_no_background(tmp_path):
+    # Film > Transparent (compositing over a plate): Combined alpha was 1 everywhere and the
+    # world filled the background
+    res = run_python(FILM, tmp_path, timeout=300)
+    assert res.returncode == 0, res.explain()
+    opaque, clear = (np.load(tmp_path / f"combined_{k}.npy") for k in (0, 1))
+    covered = np.load(tmp_path / "position.npy")[..., 3] > 0.5
+    assert (opaque[..., 3] == 1.0).all()
+    a = clear[..., 3]
+    assert a.min() == 0.0 and a.max() == 1.0
+    # the samples' coverage: the unjittered G-buffer's, but partial across the 3 px filter
+    assert a[covered].mean() > 0.9 and a[~covered].mean() < 0.1, (a[covered].mean(),
+                                                                  a[~covered].mean())
+    assert (a[covered] > 0.0).all() and (a[~covered] < 1.0).all()
+    assert ((a > 0.0) & (a < 1.0)).sum() > 10                # the box's edges are partial
+    inside = a == 1.0
+    # premultiplied: nothing of the world where nothing is covered; the surfaces as before
+    assert np.abs(clear[a == 0.0][:, :3]).max() == 0.0
+    assert np.abs(clear[inside][:, :3] - opaque[inside][:, :3]).max() < 1e-5
+    assert (opaque[~covered][:, :3] > 0.01).all()            # the world shows when opaque
