@@ -6,7 +6,8 @@ light texture read by glsl/direct_light.comp.glsl):
     texel 0: type (0 sun, 1 point, 2 spot, 3 area), world position xyz
     texel 1: world direction the light points (its -Z axis) xyz, radius (point/spot/area) or
              angular diameter in radians (sun)
-    texel 2: colour x power in radiometric units (below) rgb, unused
+    texel 2: colour x power in radiometric units (below) rgb, 1 if the light casts no shadow
+             (Cast Shadow off, `use_shadow`: a fill light) else 0
     texel 3: spot cos(half cone angle), spot blend, area (m^2, area lights), unused
 
 Units follow Cycles (intern/cycles/scene/light.cpp: point and spot strength x 1/(4 pi), area
@@ -66,6 +67,7 @@ def light_row(light, matrix_world) -> np.ndarray:
         area, radius = _area_size(light)
         row[7] = radius
         row[8:11] = colour * float(light.energy) / math.pi
+    row[11] = 0.0 if getattr(light, "use_shadow", True) else 1.0
     row[12:15] = (cos_half, blend, area)
     return row
 
@@ -74,11 +76,15 @@ def light_table(depsgraph) -> np.ndarray:
     """float32 [N, 16]: every light instance of the evaluated depsgraph (see the module doc)."""
     rows = []
     view_layer = depsgraph.view_layer
+    # F12's depsgraph holds what renders: a light hidden in the viewport only lights F12, as in
+    # Cycles (visible_get is the viewport's visibility)
+    rendering = getattr(depsgraph, "mode", "VIEWPORT") == 'RENDER'
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type != 'LIGHT' or obj.data.type not in LIGHT_TYPES:
             continue
-        if not inst.is_instance and not obj.original.visible_get(view_layer=view_layer):
+        if not (inst.is_instance or rendering) \
+                and not obj.original.visible_get(view_layer=view_layer):
             continue
         rows.append(light_row(obj.data, inst.matrix_world))
     return np.array(rows, np.float32).reshape(-1, ROW)

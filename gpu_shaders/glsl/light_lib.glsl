@@ -169,7 +169,7 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int fir
       return vec3(0.0);
     }
     float k = clamp(1.0 / max(tan(0.5 * t1.w), 1e-3), 2.0, 256.0);
-    return t2.rgb * cos_s * cone_visibility(p, n, L, 100.0, k);
+    return t2.rgb * cos_s * (t2.w > 0.5 ? 1.0 : cone_visibility(p, n, L, 100.0, k));
   }
   vec3 centre = t0.yzw;
   float r = t1.w;
@@ -214,7 +214,7 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int fir
      * light hangs under) casts nothing */
     float reach = max(dist - sub, 0.5 * dist);
     float k = clamp(dist / max(sub, 1e-3), 2.0, 256.0);
-    sum += E * cos_s * cone_visibility(p, n, L, reach, k);
+    sum += E * cos_s * (t2.w > 0.5 ? 1.0 : cone_visibility(p, n, L, reach, k));  /* w: no shadow */
   }
   return sum / float(n_take);
 }
