@@ -349,6 +349,35 @@ def stereo_and_transparent_film(bpy):
     scene.render.film_transparent = True
 
 
+@case
+def animation_render(bpy):
+    # Render Animation (F12 of several frames written to files) with a moving object
+    scene = base(bpy)
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(1.0, 1.0, 0.25))
+    box = bpy.context.object
+    box.keyframe_insert("location", frame=1)
+    box.location.x = -1.0
+    box.keyframe_insert("location", frame=3)
+    scene.frame_start, scene.frame_end = 1, 3
+    scene.render.resolution_x = scene.render.resolution_y = 24
+    scene.render.filepath = str(Path(tempfile.gettempdir()) / "lumen_odd_anim" / "f")
+    scene.render.image_settings.file_format = 'PNG'
+    scene.lumen.bake.cache_dir = str(Path(tempfile.gettempdir()) / "lumen_odd_anim" / "cache")
+    bpy.ops.lumen.bake()
+    scene.render.engine = "LUMEN_GI"
+    scene.lumen.engine.render_quality = "LOW"
+    bpy.ops.render.render(animation=True)
+    written = sorted((Path(tempfile.gettempdir()) / "lumen_odd_anim").glob("f*.png"))
+    if len(written) != 3:
+        raise RuntimeError(f"Render Animation wrote {len(written)} of 3 frames")
+
+
+@case
+def factory_startup(bpy):
+    # Blender's own start-up scene: the cube, its 1000 W point light, the camera; no floor
+    bpy.ops.wm.read_factory_settings(use_empty=False)
+
+
 def finite(img) -> bool:
     return img is None or bool(np.isfinite(np.asarray(img, np.float64)).all())
 
