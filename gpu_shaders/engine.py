@@ -393,7 +393,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     LAST_RENDER.update(
         view_proj=np.asarray(view_proj, np.float64), cam_pos=cam_pos, lights=state.lights,
         gi_method=method.method,
-        sky=sky.mean, sun=sky_maps.sun, notes=[f"{name}: {message}" for name, message in warnings] + sky_notes + method_notes + [
+        sky=sky.mean, sun=sky_maps.sun,
+        notes=[f"{name}: {message}" for name, message in warnings] + sky_notes + method_notes + [
             f"{name}: its transform cannot be inverted (a scale of 0?): it casts and bounces no "
             f"light" for name in state.left_out], triangles=gbuf["triangles"],
         gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
