@@ -8,7 +8,9 @@ projection (what Blender does before a viewport's `view_draw`) and calls the eng
 view_matrix of the scene camera), space_data (clip_end) and preferences. After `on_redraw`
 edits the scene, the depsgraph is re-evaluated and the engine's `view_update` sees its updates
 (from a depsgraph_update_post handler, while depsgraph.updates still lists them), as Blender
-calls view_update before the next view_draw.
+calls view_update before the next view_draw. The depsgraph is render()'s, a RENDER one: what
+it evaluates follows render settings (objects hidden only in the viewport are drawn, modifiers
+at render levels), unlike a real viewport's.
 
     result = run(scene, LumenGIRenderEngine, 640, 360, redraws=4, on_redraw=callback)
     result["drawn"]     float32 [h, w, 4]: the offscreen after the last redraw (display space)
