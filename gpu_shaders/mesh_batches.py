@@ -24,7 +24,7 @@ import numpy as np
 from gpu_extras.batch import batch_for_shader
 
 from .gbuffer import ATTACHMENTS, gbuffer_program, scene_triangles, upload_texture
-from .resources import float_buffer, glsl
+from .resources import float_buffer, glsl, row_texture
 
 TEXELS = 6                      # instance table texels per row
 
@@ -120,8 +120,7 @@ class MeshBatches:
         if self.rows is None or rows.shape != self.rows.shape or not np.array_equal(rows,
                                                                                     self.rows):
             data = rows if len(rows) else np.zeros((1, TEXELS, 4), np.float32)
-            self.table = gpu.types.GPUTexture((TEXELS, len(data)), format='RGBA32F',
-                                              data=float_buffer(data))
+            self.table = row_texture(data)    # 1,024 rows a line (row_table_lib.glsl)
             self.rows, uploaded = rows, True
             self.table_uploads += 1
         self.runs = runs

@@ -256,3 +256,23 @@ def pack_scene(meshes: dict, instances, mip: int = 0, indirection_width: int = I
 def pack_bake(bake, mip: int = 0) -> PackedScene:
     """pack_scene for a lumen_addon.bake.SceneBake (from bake_scene or cache.read_cache)."""
     return pack_scene(bake.meshes, bake.instances, mip)
+
+
+ROWS_PER_LINE = 1024     # row tables: rows of K texels, this many rows a texture line
+
+
+def row_table(rows, pad=None) -> np.ndarray:
+    """float32 [lines, min(n, ROWS_PER_LINE) * K, 4]: the table rows [n, K, 4] laid out
+    ROWS_PER_LINE rows a line (row r at line r // 1024, texels (r % 1024) K .. + K - 1; GLSL:
+    row_table_lib.glsl's row_texel). Why: as one column n texels high, a table past the GPU's
+    largest texture side (16,384 on llvmpipe) failed to upload, and with it the render (5,000
+    scattered pebbles' cards). The last line is filled with `pad` rows [K, 4] (zeros without)."""
+    rows = np.asarray(rows, np.float32)
+    n, k = rows.shape[0], rows.shape[1]
+    per = max(min(n, ROWS_PER_LINE), 1)
+    lines = max(-(-n // per), 1)
+    out = np.zeros((lines * per, k, 4), np.float32)
+    out[:n] = rows
+    if pad is not None:
+        out[n:] = pad
+    return out.reshape(lines, per * k, 4)

@@ -23,7 +23,7 @@ import numpy as np
 
 from . import glsl_include
 from .object_grid import build_object_grid
-from .packing import OBJECT_TEXELS, PackedScene, pack_bake
+from .packing import OBJECT_TEXELS, PARKED, PackedScene, pack_bake, row_table
 
 GLSL = Path(__file__).resolve().parent / "glsl"
 _SHADERS = {}
@@ -32,6 +32,13 @@ _SHADERS = {}
 def glsl(names) -> str:
     """glsl/<name> (or several names) with the libraries it #includes (glsl_include.py)."""
     return glsl_include.source(names, GLSL)
+
+
+def row_texture(rows, pad=None):
+    """A GPUTexture RGBA32F of row_table(rows, pad)."""
+    table = row_table(rows, pad)
+    return gpu.types.GPUTexture((table.shape[1], table.shape[0]), format='RGBA32F',
+                                data=float_buffer(table))
 
 
 def float_buffer(array) -> "gpu.types.Buffer":
@@ -106,8 +113,11 @@ class SceneResources:
             raise ValueError("the bake has no objects to trace")
         t0 = time.perf_counter()
         self.packed.objects = rows
-        self.objects = gpu.types.GPUTexture((OBJECT_TEXELS, len(rows)), format='RGBA32F',
-                                            data=float_buffer(rows))
+        # the last line's unused rows parked (a bounding sphere 1e30 m away: every loop over
+        # the objects, sdf_object_count's, skips them)
+        parked = np.array(rows[-1], np.float32)
+        parked[8] = (PARKED, PARKED, PARKED, 0.0)
+        self.objects = row_texture(rows, pad=parked)
         texels, self.grid_info = build_object_grid(rows)
         self.grid_shape = texels.shape
         self.grid = gpu.types.GPUTexture((texels.shape[1], texels.shape[0]), format='RGBA32F',

@@ -30,6 +30,7 @@ import numpy as np
 
 from . import compute
 from .card_packing import CARD_TEXELS, PROBE_BLOCK, PackedCards, pack_cards
+from .packing import row_table
 from .resources import SceneResources, float_buffer
 from .surface_cache_pages import TILE, TILE_PROBES, PageSchedule, tile_area, tile_geometry
 
@@ -117,10 +118,12 @@ class SurfaceCache:
         rgba[..., :3], rgba[..., 3] = layers["emissive"], 0.0
         self.emissive = self._make("emissive", (aw, ah), 'RGBA16F', rgba)
         mark_emissive_cards(self.packed.cards, layers["emissive"])
-        self.cards = self._make("cards", (CARD_TEXELS, self.packed.rows), 'RGBA32F', self.packed.cards)
-        self.instances = self._make("instances", (1, max(len(self.packed.instances), 1)), 'RGBA32F',
-                                    self.packed.instances if len(self.packed.instances)
-                                    else np.zeros((1, 1, 4), np.float32))
+        # row tables (packing.row_table: 1,024 rows a line; row_table_lib.glsl)
+        cards = row_table(np.asarray(self.packed.cards, np.float32).reshape(-1, CARD_TEXELS, 4))
+        self.cards = self._make("cards", (cards.shape[1], cards.shape[0]), 'RGBA32F', cards)
+        inst = row_table(np.asarray(self.packed.instances, np.float32).reshape(-1, 1, 4)
+                         if len(self.packed.instances) else np.zeros((1, 1, 4), np.float32))
+        self.instances = self._make("instances", (inst.shape[1], inst.shape[0]), 'RGBA32F', inst)
         lw, lh = self.packed.lighting_size
         self.texel_card = self._make("texel_card", (lw, lh), 'R32F', self.packed.texel_card)
         zero = np.zeros((lh, lw, 4), np.float32)

@@ -1,3 +1,4 @@
+#include "row_table_lib.glsl"
 /* Lumen GI G-buffer, instanced vertex stage (mesh_batches.py): a unique mesh's local-space
  * corners drawn once per instance with draw_instanced; the instance's row of the instance table
  * (`instances`, RGBA32F, 6 texels per row: the model matrix's rows 0..2, then the normal
@@ -9,12 +10,12 @@
 void main()
 {
   int row = instance_base + gl_InstanceID;
-  vec4 m0 = texelFetch(instances, ivec2(0, row), 0);
-  vec4 m1 = texelFetch(instances, ivec2(1, row), 0);
-  vec4 m2 = texelFetch(instances, ivec2(2, row), 0);
-  vec3 n0 = texelFetch(instances, ivec2(3, row), 0).xyz;
-  vec3 n1 = texelFetch(instances, ivec2(4, row), 0).xyz;
-  vec3 n2 = texelFetch(instances, ivec2(5, row), 0).xyz;
+  vec4 m0 = texelFetch(instances, row_texel(row, 0, 6), 0);
+  vec4 m1 = texelFetch(instances, row_texel(row, 1, 6), 0);
+  vec4 m2 = texelFetch(instances, row_texel(row, 2, 6), 0);
+  vec3 n0 = texelFetch(instances, row_texel(row, 3, 6), 0).xyz;
+  vec3 n1 = texelFetch(instances, row_texel(row, 4, 6), 0).xyz;
+  vec3 n2 = texelFetch(instances, row_texel(row, 5, 6), 0).xyz;
   vec4 p = vec4(pos, 1.0);
   vec3 world = vec3(dot(m0, p), dot(m1, p), dot(m2, p));
   vec3 n = vec3(dot(n0, nor), dot(n1, nor), dot(n2, nor));

@@ -1,9 +1,11 @@
+#include "row_table_lib.glsl"
 /* Lumen GI: sampling the scene's mesh SDFs (mip 0), the GPU twin of lumen_addon.sdf.MeshSDF.sample.
  *
  * Resources (declared by the pass's GPUShaderCreateInfo, see gpu_shaders/resources.py):
  *   sampler3D  sdf_atlas        R8: every kept brick, 8^3 texels per brick cell (packing.py)
  *   isampler2D sdf_indirection  R32I: all meshes' brick tables, one linear table in rows
- *   sampler2D  sdf_objects      RGBA32F: 9 texels per instance row (packing.py)
+ *   sampler2D  sdf_objects      RGBA32F: 10 texels per instance row (packing.py), a row table
+ *                               (row_table_lib.glsl)
  *   sampler2D  sdf_grid         RGBA32F: the object grid, cell -> (first entry, count, bound B)
  *                               and the flat lists of (instance, distance to the cell), nearest
  *                               first (object_grid.py has the layout)
@@ -21,14 +23,16 @@
 #define SDF_INVALID_INSIDE -2
 #define SDF_OBJECT_TEXELS 10
 
+/* The object table's rows (a row table: its last line's unused rows are parked, a bounding
+ * sphere 1e30 m away, which every loop over the objects skips). */
 int sdf_object_count()
 {
-  return textureSize(sdf_objects, 0).y;
+  return row_table_rows(textureSize(sdf_objects, 0), SDF_OBJECT_TEXELS);
 }
 
 vec4 sdf_object_texel(int obj, int texel)
 {
-  return texelFetch(sdf_objects, ivec2(texel, obj), 0);
+  return texelFetch(sdf_objects, row_texel(obj, texel, SDF_OBJECT_TEXELS), 0);
 }
 
 /* Code (0..255) of sample c (0..7 per axis) of scene brick `slot`. */

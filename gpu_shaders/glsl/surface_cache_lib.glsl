@@ -3,8 +3,9 @@
 /* Lumen GI: the surface cache (mesh cards) on the GPU (needs sdf_lib.glsl, sdf_ray_lib.glsl).
  *
  * Resources (declared by surface_cache.SurfaceCache.declare, layout in card_packing.py):
- *   sampler2D sc_cards       RGBA32F, 4 texels per (instance, card) row
- *   sampler2D sc_instances   RGBA32F, 1 texel per object-table row: (first card row, count)
+ *   sampler2D sc_cards       RGBA32F, 4 texels per (instance, card) row   (row tables:
+ *   sampler2D sc_instances   RGBA32F, 1 texel per object-table row:        row_table_lib.glsl)
+ *                            (first card row, count)
  *   sampler2D sc_albedo      card atlas: albedo.rgb, opacity      (mesh-local layers, shared by
  *   sampler2D sc_normal      card atlas: local normal.xyz, depth   all instances of a mesh)
  *   sampler2D sc_emissive    card atlas: emissive.rgb
@@ -26,12 +27,12 @@ ivec2 sc_plane(int axis)
 
 vec4 sc_card(int row, int t)
 {
-  return texelFetch(sc_cards, ivec2(t, row), 0);
+  return texelFetch(sc_cards, row_texel(row, t, SC_CARD_TEXELS), 0);
 }
 
 ivec2 sc_instance_range(int obj)
 {
-  vec4 r = texelFetch(sc_instances, ivec2(0, obj), 0);
+  vec4 r = texelFetch(sc_instances, row_texel(obj, 0, 1), 0);
   return ivec2(r.xy + 0.5);
 }
 
