@@ -15,6 +15,7 @@ import argparse
 import math
 import sys
 import tempfile
+import time
 import traceback
 from pathlib import Path
 
@@ -373,6 +374,25 @@ def animation_render(bpy):
 
 
 @case
+def dense_scatter(bpy):
+    # 5,000 pebbles scattered over 3 x 3 m (a particle system instancing one object): far more
+    # instances per cell of the object grid than its list holds
+    scene = base(bpy)
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=1, radius=0.04, location=(0, 0, -5))
+    pebble = bpy.context.object
+    bpy.ops.mesh.primitive_plane_add(size=3.0, location=(0.0, 0.0, 0.01))
+    emitter = bpy.context.object
+    emitter.modifiers.new("Scatter", 'PARTICLE_SYSTEM')
+    ps = emitter.particle_systems[0].settings
+    ps.type = 'HAIR'
+    ps.count = 5000
+    ps.render_type = 'OBJECT'
+    ps.instance_object = pebble
+    ps.particle_size = 1.0
+    scene.render.resolution_x = scene.render.resolution_y = 32
+
+
+@case
 def factory_startup(bpy):
     # Blender's own start-up scene: the cube, its 1000 W point light, the camera; no floor
     bpy.ops.wm.read_factory_settings(use_empty=False)
@@ -399,7 +419,9 @@ def run_case(name, fn, size, tmp: Path, engine) -> dict:
         scene.render.engine = "LUMEN_GI"
         eng = scene.lumen.engine
         eng.render_frames, eng.bounces, eng.converge_bounces = 1, 1, False
+        t = time.perf_counter()
         bpy.ops.render.render()
+        out["notes"].append(f"F12 took {time.perf_counter() - t:.1f} s")
         R = engine.LAST_RENDER
         if "error" in R:
             raise RuntimeError(R.get("traceback", R["error"]))
@@ -415,6 +437,8 @@ def run_case(name, fn, size, tmp: Path, engine) -> dict:
         out["finite"] &= all(finite(R.get(k)) for k in ("combined", "direct", "indirect"))
         out["notes"] += [n for n in R.get("notes", [])][:3]
         drawn = viewport_harness.run(scene, engine.LumenGIRenderEngine, size, size, redraws=2)
+        out["notes"].append("viewport redraws took " + ", ".join(
+            f"{s:.2f}" for s in drawn["seconds"]) + " s")
         R = engine.LAST_RENDER
         if "error" in R:
             raise RuntimeError(R.get("traceback", R["error"]))
