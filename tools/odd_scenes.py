@@ -25,6 +25,10 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT / "tools")]
 
 CASES = {}
+# run only when named in --only: a dense scatter's F12 of one GI iteration took over 10 minutes
+# at 16 px (open: its object grid's cells list more than CELL_CAP instances, so SDF samples
+# there walk all 5,003; a cap of 512 did not bring it under 4 minutes, so that is not all)
+SLOW = {"dense_scatter"}
 
 
 def case(fn):
@@ -460,7 +464,7 @@ def main():
     addon = demo.load_addon()
     engine = addon.gpu_shaders.engine
     engine.KEEP_IMAGES = True
-    names = [n for n in CASES if not args.only or n in args.only.split(",")]
+    names = [n for n in CASES if (n in args.only.split(",") if args.only else n not in SLOW)]
     bad = 0
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(args.keep) if args.keep else Path(tmp)
