@@ -56,6 +56,18 @@ def base(bpy, floor=True, sun=True):
     return scene
 
 
+def scatter(bpy, count: int, radius: float, size: float):
+    """`count` icospheres of `radius` scattered by a hair particle system (render as object)
+    over a plane of `size` m."""
+    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=1, radius=radius, location=(0, 0, -5))
+    pebble = bpy.context.object
+    bpy.ops.mesh.primitive_plane_add(size=size, location=(0.0, 0.0, 0.01))
+    emitter = bpy.context.object
+    emitter.modifiers.new("Scatter", 'PARTICLE_SYSTEM')
+    ps = emitter.particle_systems[0].settings
+    ps.type, ps.count, ps.render_type, ps.instance_object = 'HAIR', count, 'OBJECT', pebble
+
+
 @case
 def text_curve_metaball(bpy):
     base(bpy)
@@ -265,16 +277,7 @@ def panoramic_camera(bpy):
 @case
 def particle_instances_and_animation(bpy):
     scene = base(bpy)
-    bpy.ops.mesh.primitive_ico_sphere_add(radius=0.1, location=(0.0, 0.0, -5.0))
-    pebble = bpy.context.object
-    bpy.ops.mesh.primitive_plane_add(size=3.0, location=(0.0, 0.0, 0.05))
-    emitter = bpy.context.object
-    emitter.modifiers.new("Hair", 'PARTICLE_SYSTEM')
-    ps = emitter.particle_systems[0].settings
-    ps.type = 'HAIR'
-    ps.count = 50
-    ps.render_type = 'OBJECT'
-    ps.instance_object = pebble
+    scatter(bpy, 50, radius=0.1, size=3.0)
     bpy.ops.mesh.primitive_cube_add(size=0.5, location=(1.0, 1.0, 0.25))
     box = bpy.context.object
     box.keyframe_insert("location", frame=1)
@@ -382,17 +385,7 @@ def dense_scatter(bpy):
     # 5,000 pebbles scattered over 3 x 3 m (a particle system instancing one object): far more
     # instances per cell of the object grid than its list holds
     scene = base(bpy)
-    bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=1, radius=0.04, location=(0, 0, -5))
-    pebble = bpy.context.object
-    bpy.ops.mesh.primitive_plane_add(size=3.0, location=(0.0, 0.0, 0.01))
-    emitter = bpy.context.object
-    emitter.modifiers.new("Scatter", 'PARTICLE_SYSTEM')
-    ps = emitter.particle_systems[0].settings
-    ps.type = 'HAIR'
-    ps.count = 5000
-    ps.render_type = 'OBJECT'
-    ps.instance_object = pebble
-    ps.particle_size = 1.0
+    scatter(bpy, 5000, radius=0.04, size=3.0)
     scene.render.resolution_x = scene.render.resolution_y = 32
 
 
