@@ -87,7 +87,8 @@ void main()
     vec3 ro, rd;
     camera_ray(px, size, ro, rd);
     /* Film > Transparent: nothing (rgba 0) where no surface is */
-    imageStore(combined_out, px, sample_plan >= 268435456 ? vec4(0.0) : vec4(sky_background(rd), 1.0));
+    imageStore(combined_out, px,
+               sample_plan >= 268435456 ? vec4(0.0) : vec4(sky_background(rd), 1.0));
     return;
   }
   vec3 p = pos.xyz;

@@ -13,5 +13,6 @@ void main()
   }
   vec4 e = texelFetch(e_new, px, 0);
   vec4 h = texelFetch(e_history, px, 0);
-  imageStore(out_image, px, vec4(mix(h.rgb, e.rgb, blend), mix_alpha != 0 ? mix(h.w, e.w, blend) : e.w));
+  imageStore(out_image, px,
+             vec4(mix(h.rgb, e.rgb, blend), mix_alpha != 0 ? mix(h.w, e.w, blend) : e.w));
 }
