@@ -24,7 +24,7 @@ import numpy as np
 from gpu_extras.batch import batch_for_shader
 
 from .gbuffer import ATTACHMENTS, gbuffer_program, scene_triangles, upload_texture
-from .resources import float_buffer, glsl, row_texture
+from .resources import glsl, row_texture
 
 TEXELS = 6                      # instance table texels per row
 
@@ -67,7 +67,7 @@ class MeshBatches:
     def __init__(self):
         self.entries = {}          # mesh key -> _Entry
         self.textures = {}         # id(array) -> (array, (GPUTexture, base height))
-        self.table = None          # GPUTexture RGBA32F (6, rows)
+        self.table = None          # GPUTexture RGBA32F: a row table of 6 texels a row
         self.rows = None           # float32 [rows, 6, 4] on the GPU
         self.runs = []             # [(mesh key, first row, count)] in table order
         self.built_total = 0       # batches built over the state's life (tests)

@@ -65,9 +65,11 @@ def collection_instancer(name: str, collection, location=(0, 0, 0)):
     return link(empty)
 
 
-def geometry_nodes_scatter(name: str, instance_node: str = "GeometryNodeMeshIcoSphere"):
+def geometry_nodes_scatter(name: str, instance_node: str = "GeometryNodeMeshIcoSphere",
+                           keep_plane: bool = True):
     """A plane whose geometry nodes put one mesh instance on each of its 4 vertices and keep
-    the plane itself (Join Geometry)."""
+    the plane itself (Join Geometry; keep_plane=False: only the instances, so the object's own
+    mesh has no faces)."""
     bpy.ops.mesh.primitive_plane_add(size=4.0)
     plane = bpy.context.object
     plane.name = name
@@ -81,7 +83,8 @@ def geometry_nodes_scatter(name: str, instance_node: str = "GeometryNodeMeshIcoS
     links.new(group_in.outputs[0], on_points.inputs["Points"])
     links.new(mesh.outputs["Mesh"], on_points.inputs["Instance"])
     links.new(on_points.outputs["Instances"], join.inputs[0])
-    links.new(group_in.outputs[0], join.inputs[0])
+    if keep_plane:
+        links.new(group_in.outputs[0], join.inputs[0])
     links.new(join.outputs[0], group_out.inputs[0])
     plane.modifiers.new("Scatter", 'NODES').node_group = tree
     return plane

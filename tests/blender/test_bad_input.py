@@ -86,20 +86,11 @@ def test_objects_without_faces_are_left_out_and_the_rest_bakes(blender, tmp_path
     # instances are the surface: the whole bake was refused ("mesh has no faces")
     setup = """
 loose_vertices('LooseVerts')
-grid = cube('Scatter', location=(4, 0, 0))
-tree = bpy.data.node_groups.new('Scatter', 'GeometryNodeTree')
-tree.interface.new_socket('Geometry', in_out='INPUT', socket_type='NodeSocketGeometry')
-tree.interface.new_socket('Geometry', in_out='OUTPUT', socket_type='NodeSocketGeometry')
-n_in, n_out = tree.nodes.new('NodeGroupInput'), tree.nodes.new('NodeGroupOutput')
-inst = tree.nodes.new('GeometryNodeInstanceOnPoints')
-tree.links.new(n_in.outputs[0], inst.inputs['Points'])
-tree.links.new(tree.nodes.new('GeometryNodeMeshCube').outputs['Mesh'], inst.inputs['Instance'])
-tree.links.new(inst.outputs['Instances'], n_out.inputs[0])
-grid.modifiers.new('Scatter', 'NODES').node_group = tree
+geometry_nodes_scatter('Scatter', keep_plane=False).location = (4, 0, 0)
 """
     r, _ = run_case(blender, tmp_path, setup)
     assert r["result"] == ["FINISHED"] and r["error"] is None, r
     assert "Box" in r["objects"] and "LooseVerts" not in r["objects"], r["objects"]
     scattered = [n for n in r["objects"] if n.startswith("Scatter/")]
-    assert len(scattered) == 8, r["objects"]        # one cube per corner of the cube
+    assert len(scattered) == 4, r["objects"]        # one icosphere per corner of the plane
     assert "Scatter" not in r["objects"]
