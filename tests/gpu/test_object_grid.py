@@ -7,7 +7,8 @@ evaluates sdf_scene (the grid) and sdf_scene_all (every object) and counts the i
 visits. Wherever the full loop's value is below the margin M the two agree exactly (value,
 nearest object, its voxel); everywhere min(full, M) <= grid <= full (a lower bound, safe for
 sphere tracing). The grid tests a few instances per sample, the full loop all of them. The same
-holds with a per-cell cap of 3, where the crowded cells fall back to the full loop. And
+holds with a per-cell cap of 3, where a crowded cell keeps its 3 nearest and is exact below its
+lowered bound B (or, where B would be under 4 voxels of a listed object, runs the full loop). And
 sdf_scene_box_span of a ray along z from the scene box's low x face, with -0.0 in x (0 * inf in
 the slab test): finite, leaving through the top where it starts inside.
 """
@@ -20,6 +21,7 @@ HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE.parent / "blender")]
 
 from blender_runner import run_python  # noqa: E402
+from gpu_shaders.object_grid import sample_bound  # noqa: E402
 
 SNIPPET = f"""
 import traceback
@@ -93,8 +95,8 @@ def job():
         info.image(k, 'RGBA32F', 'FLOAT_2D', name, qualifiers={{'WRITE'}})
     sh = compute.create(info, glsl("sdf_lib.glsl") + SRC)
     runs = {{}}
-    for cap in (64, 3):
-        if cap != 64:
+    for cap in (1024, 3):
+        if cap != 1024:
             texels, grid_info = build_object_grid(objs, cap=cap)
             res.grid = gpu.types.GPUTexture((texels.shape[1], texels.shape[0]), format='RGBA32F',
                                             data=float_buffer(texels))
@@ -107,6 +109,8 @@ def job():
             sh.image(name, tex)
         compute.run(sh, -(-n // 64))
         np.save(f"grid{{cap}}.npy", np.concatenate([compute.read(t)[0] for t in outs], axis=1))
+        if cap != 1024:
+            np.save(f"texels{{cap}}.npy", texels)
         runs[cap] = dict((k, v) for k, v in grid_info.items() if k != "seconds")
     np.save("points.npy", pts)
     OUT.update(objects=len(objs), runs=runs, stats=res.stats())
@@ -142,7 +146,8 @@ def test_grid_scene_distance_equals_the_full_loop_below_the_margin(tmp_path):
     n_obj = out["objects"]
     assert n_obj == 49
     assert out["stats"]["object_grid"] > 0
-    for cap in (64, 3):
+    points = np.load(tmp_path / "points.npy")
+    for cap in (1024, 3):
         info = out["runs"][str(cap)]
         a = np.load(tmp_path / f"grid{cap}.npy")         # [n, 12]
         dg, df, tg, vg = a[:, 0], a[:, 1], a[:, 2], a[:, 3]
@@ -156,22 +161,30 @@ def test_grid_scene_distance_equals_the_full_loop_below_the_margin(tmp_path):
         assert (span_in[inside] == 0.0).all(), span_in[inside]
         assert np.abs(exit_err[inside]).max() < 1e-4
         m = info["margin"]
-        below = df < m
+        # a crowded cell that keeps its nearest `cap` is exact below its lowered bound
+        bound = (sample_bound(np.load(tmp_path / f"texels{cap}.npy"), points) if cap != 1024
+                 else np.full(len(df), 1e30))
+        exact = np.minimum(m, bound)
+        below = df < exact
         assert below.sum() >= 1000, below.sum()                 # near surfaces, inside solids
         assert (~below).sum() >= 500                             # the open and outside the grid
         np.testing.assert_array_equal(dg[below], df[below])
         np.testing.assert_array_equal(ng[below], nf[below])
         np.testing.assert_array_equal(hg[below], hf[below])
         assert np.all(dg <= df + 1e-6 * np.abs(df)), (dg - df).max()
-        assert np.all(dg >= np.minimum(df, m) - 1e-5), (np.minimum(df, m) - dg).max()
+        assert np.all(dg >= np.minimum(df, exact) - 1e-5), (np.minimum(df, exact) - dg).max()
         assert np.all(tf == n_obj)                               # the full loop tests every one
         crowded = tg == n_obj                                    # cells that ran the full loop
         print(f"cap {cap}: grid {info}, below M {below.sum()}, grid tests mean "
               f"{tg.mean():.2f} max {tg.max():.0f}, visits mean {vg.mean():.2f}; full loop "
               f"visits mean {a[:, 9].mean():.2f}; full-loop cells {crowded.sum()}")
-        if cap == 64:
+        if cap == 1024:
             assert info["overflow"] == 0
             assert tg.mean() < 0.2 * n_obj and tg.max() <= info["max_count"]
             assert vg.mean() < 0.1 * n_obj
         else:
             assert info["overflow"] > 0 and crowded.any() and not crowded.all()
+            # truncated cells: every point there is bounded below M, and tests at most the cap
+            short = bound < m
+            assert info["truncated"] > 0 and short.sum() > 50, (info, short.sum())
+            assert tg[short].max() <= cap
