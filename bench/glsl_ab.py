@@ -36,7 +36,8 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 
 PASSES = ("screen_probe_trace", "screen_probe_integrate", "screen_probe_fallback", "direct_light",
-          "surface_cache_probe_trace", "screen_probe_links", "screen_probe_filter")
+          "surface_cache_probe_trace", "surface_cache_direct", "surface_cache_indirect",
+          "screen_probe_links", "screen_probe_filter")
 
 
 def ab_arguments(ap, rounds: int):

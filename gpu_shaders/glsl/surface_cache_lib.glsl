@@ -5,7 +5,7 @@
  * Resources (declared by surface_cache.SurfaceCache.declare, layout in card_packing.py):
  *   sampler2D sc_cards       RGBA32F, 4 texels per (instance, card) row   (row tables:
  *   sampler2D sc_instances   RGBA32F, 1 texel per object-table row:        row_table_lib.glsl)
- *                            (first card row, count)
+ *                            (first card row, count, emissive cards)
  *   sampler2D sc_albedo      card atlas: albedo.rgb, opacity      (mesh-local layers, shared by
  *   sampler2D sc_normal      card atlas: local normal.xyz, depth   all instances of a mesh)
  *   sampler2D sc_emissive    card atlas: emissive.rgb
@@ -222,6 +222,10 @@ vec3 sc_near_emission(vec3 p, vec3 n, float voxel)
       }
       i = int(entry.x + 0.5);
     }
+    vec4 range4 = texelFetch(sc_instances, row_texel(i, 0, 1), 0);
+    if (range4.z < 0.5) {
+      continue;                   /* none of its cards emits */
+    }
     vec4 sphere = sdf_object_texel(i, 8);
     if (length(p - sphere.xyz) - sphere.w > reach) {
       continue;
@@ -231,7 +235,7 @@ vec3 sc_near_emission(vec3 p, vec3 n, float voxel)
     mat3 nrm = transpose(mat3(w2l));
     float scale = sdf_object_texel(i, 7).w;
     vec3 pl = (w2l * vec4(p, 1.0)).xyz;
-    ivec2 range = sc_instance_range(i);
+    ivec2 range = ivec2(range4.xy + 0.5);
     for (int r = range.x; r < range.x + range.y; r++) {
       vec4 t3 = sc_card(r, 3);
       if (t3.z <= 0.0) {
