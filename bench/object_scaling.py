@@ -22,6 +22,9 @@ For N = 10, 100, 1000 (`--counts`) in one process, same resolution:
              (a viewport-like frame) and with its default 64, one warm-up then `--repeat`, median
 and the ratios N=max / N=min (EEVEE's too: how much the scene itself grew for a rasteriser).
 Shader compilation happens in the first N's warm-ups.
+--alternate R: then R rounds that reopen each N's baked scene in turn and time its still frames
+again, and the ratio N=max / N=min per round and their median (a shared host's speed drifts by
+up to 2x over minutes: the two N of one round run back to back).
 --passes: every compute dispatch timed by shader (bench/pass_profile.py's timed_dispatches; on
 llvmpipe a dispatch runs before it returns), per N the still viewport frames' means and the
 last F12's sums (and the default F12's), and a table of each pass at N=min against N=max,
@@ -29,7 +32,7 @@ largest growth first: what grows with the object count.
 
     .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
                                              [--still 16] [--quality MEDIUM] [--f12-max N] [--passes] [--eevee]
-                                             [--default-f12]
+                                             [--default-f12] [--alternate R]
     .venv/bin/python bench/object_scaling.py --gbuffer-only [--counts ...] [--size 128]
 """
 from __future__ import annotations
@@ -149,6 +152,8 @@ def measure(n: int, args, tmp: Path) -> dict:
         per_draw.append(dict(timings))
         timings.clear()
 
+    if args.alternate:
+        bpy.ops.wm.save_as_mainfile(filepath=str(tmp / f"scene{n}.blend"), copy=True)
     try:
         out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
                                    redraws=args.still + 1, on_redraw=record)
@@ -199,6 +204,29 @@ def measure(n: int, args, tmp: Path) -> dict:
     eevee = eevee_times(scene, args.repeat) if args.eevee else None
     return dict(n=n, bake=bake_seconds, view=view, f12=f12, triangles=R.get("triangles", 0),
                 eevee=eevee)
+
+
+def alternate(counts, args, tmp: Path) -> dict:
+    """{n: [still-frame mean ms per round]}: `args.alternate` rounds, each reopening every
+    count's baked scene (saved by measure) and timing `--still` still redraws after one warm-up.
+    Why: on a shared host the speed drifts by up to 2x over minutes, so two counts measured one
+    after the other (measure) can differ by that much alone; a round's counts run back to back,
+    and the ratio is taken per round."""
+    import bpy
+
+    import viewport_harness
+    from lumen_gi.gpu_shaders import engine
+
+    means = {n: [] for n in counts}
+    for _ in range(args.alternate):
+        for n in counts:
+            bpy.ops.wm.open_mainfile(filepath=str(tmp / f"scene{n}.blend"))
+            out = viewport_harness.run(bpy.context.scene, engine.LumenGIRenderEngine, args.size,
+                                       args.size, redraws=args.still + 1)
+            if "error" in engine.LAST_RENDER:
+                raise RuntimeError(engine.LAST_RENDER.get("traceback"))
+            means[n].append(statistics.fmean(out["seconds"][1:]) * 1000)
+    return means
 
 
 def eevee_times(scene, repeat: int) -> dict:
@@ -305,6 +333,9 @@ def main():
                     help="EEVEE's render with 1 and 64 samples per N: the baseline's own growth")
     ap.add_argument("--passes", action="store_true",
                     help="time every compute dispatch by pass: what grows with N")
+    ap.add_argument("--alternate", type=int, default=0, metavar="R",
+                    help="then R rounds reopening each count's scene in turn: the ratio per "
+                         "round (robust to a shared host's drift)")
     ap.add_argument("--gbuffer-only", action="store_true",
                     help="time extraction + G-buffer alone, old path against new, no bake")
     args = ap.parse_args()
@@ -356,6 +387,16 @@ def main():
                     if top:
                         print(f"  {label} passes ms: " + ", ".join(
                             f"{k} {ms:.1f}" for k, ms in top if ms >= 0.5), flush=True)
+        if args.alternate:
+            means = alternate(args.counts, args, Path(tmp))
+            a, b = args.counts[0], args.counts[-1]
+            ratios = [y / x for x, y in zip(means[a], means[b])]
+            for n in args.counts:
+                print(f"alternating: N={n:5d} still-frame means ms " +
+                      ", ".join(f"{m:.1f}" for m in means[n]))
+            print(f"alternating: ratio N={b} / N={a} per round " +
+                  ", ".join(f"{r:.2f}" for r in ratios) +
+                  f"; median {statistics.median(ratios):.2f}", flush=True)
     lo, hi = results[0], results[-1]
     f12 = [r for r in results if r["f12"] is not None]
     print(f"ratio N={hi['n']} / N={lo['n']}: viewport still frame (mean of {args.still}) "
