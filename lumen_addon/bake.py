@@ -33,6 +33,8 @@ class BakeSettings:
     texel_density: float = 20.0          # card texels per metre of world size (UE: about 20)
     texel_budget: int = 2048 * 2048      # all cards of the scene together
     max_cards: int = 32                  # per mesh (UE: 12 by default, 32 at most)
+    min_card_size: float = 0.0           # metres: smaller objects get no cards unless they
+                                         # emit (UE: MeshCardsMinSize, 10 cm); 0: all get them
 
 
 @dataclass
@@ -53,12 +55,15 @@ class ObjectInput:
     camera_visible: bool = True
 
 
+NO_CARDS = "0"                           # Instance.cards of an object too small for cards
+
+
 @dataclass
 class Instance:
     name: str
     mesh: str                            # content hash of its mesh's SDF
     matrix_world: np.ndarray
-    cards: str = ""                      # content hash of its mesh's cards
+    cards: str = ""                      # content hash of its mesh's cards (NO_CARDS: none)
 
 
 @dataclass
@@ -185,6 +190,10 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         if not obj.two_sided and _faces_inward(obj) and _holds_others(obj, m, centres):
             # its orientation may depend on what it holds (scene_points): another key
             key = context_key(key)
+        if too_small_for_cards(obj, m, settings.min_card_size):
+            instances.append(Instance(obj.name, key, m, NO_CARDS))
+            todo.setdefault(key, obj)
+            continue
         ckey = cards_hash(obj, key, settings, digests)
         instances.append(Instance(obj.name, key, m, ckey))
         todo.setdefault(key, obj)
@@ -253,6 +262,29 @@ def bake_scene(objects, settings: BakeSettings = BakeSettings(), *, previous: Sc
         progress(1.0, "")
     return SceneBake(settings, meshes, instances, time.perf_counter() - start, reused, warnings,
                      cards, atlas)
+
+
+def too_small_for_cards(obj, matrix, min_size: float) -> bool:
+    """Whether an object gets no cards: its world bounds are under `min_size` on every axis
+    and none of its materials emits (emitters keep theirs: their light is read from cards).
+    Why: a card has at least 4x4 texels, so a scatter of 5,000 8-cm pebbles held 540
+    surface-cache tiles (the floor under them 25) and one F12 GI iteration relit them all: 77 s,
+    30 s at min_card_size 0.1 (tools/odd_scenes.py dense_scatter). Lumen leaves such meshes out
+    of its surface cache too (MeshCardsMinSize, 10 cm). Rays that hit one read the voxel
+    lighting there (gi_trace_lib.glsl gi_hit_light), the light around it, which misses most of
+    the light pebbles bounce onto each other (tests/gpu/test_small_objects.py: a third of their
+    indirect light): so it is off by default (0), a setting for scatters that must render fast."""
+    if not min_size > 0:
+        return False
+    for mat in obj.materials or ():
+        if mat.emission_strength and (mat.emission_texture is not None
+                                      or max(map(float, mat.emission_color[:3])) > 0):
+            return False
+    b = _local_bounds(obj)
+    if b is None:
+        return False
+    extent = np.abs(np.asarray(matrix, np.float64)[:3, :3]) @ (b[1] - b[0])
+    return bool(np.isfinite(extent).all() and extent.max() < min_size)
 
 
 def _local_bounds(obj):

@@ -26,7 +26,7 @@ import numpy as np
 
 from . import __version__
 from .atlas import LAYERS, PADDING, Atlas, split_atlas
-from .bake import BakeSettings, Instance, SceneBake
+from .bake import NO_CARDS, BakeSettings, Instance, SceneBake
 from .sdf import (BAND_VOXELS, BRICK, BRICK_CELLS, HARD_MAX_RESOLUTION, INVALID_INSIDE, INVALID_OUTSIDE,
                   MARGIN_VOXELS, MIP_COUNT, MeshSDF, SDFMip)
 
@@ -123,7 +123,8 @@ def _write_locked(folder: Path, bake: SceneBake) -> Path:
                      "inside_fraction": bake.settings.inside_fraction,
                      "texel_density": bake.settings.texel_density,
                      "texel_budget": bake.settings.texel_budget,
-                     "max_cards": bake.settings.max_cards},
+                     "max_cards": bake.settings.max_cards,
+                     "min_card_size": bake.settings.min_card_size},
         "sdf": {"brick_size": BRICK, "brick_cells": BRICK_CELLS, "band_voxels": BAND_VOXELS,
                 "encoding": ENCODING, "invalid_outside": INVALID_OUTSIDE, "invalid_inside": INVALID_INSIDE,
                 "file": npz_name, "sha256": digest, "size": len(payload)},
@@ -507,7 +508,9 @@ def _settings(v: _Values, s) -> BakeSettings:
         v.num(s["inside_fraction"], "settings.inside_fraction", 0.0, 1.0),
         v.num(s["texel_density"], "settings.texel_density", MIN_VOXEL, MAX_DENSITY),
         v.int(s["texel_budget"], "settings.texel_budget", 1, 2 ** 31 - 1),
-        v.int(s["max_cards"], "settings.max_cards", 1, MAX_CARD_INDEX))
+        v.int(s["max_cards"], "settings.max_cards", 1, MAX_CARD_INDEX),
+        # optional: caches from before it gave every object its cards
+        v.num(s.get("min_card_size", 0.0), "settings.min_card_size", 0.0, MAX_COORD))
 
 
 def _mesh(v: _Values, m, i: int):
@@ -713,7 +716,7 @@ def _decode(manifest: dict, mpath: Path) -> SceneBake:
         cards_total = {"cards": len(table), "texels": sum(e["rect"][2] * e["rect"][3] for e in table),
                        "coverage": round(min(coverage.values()), 4), "atlas": [width, height]}
         for n, x in enumerate(instances):
-            if x.cards not in coverage:
+            if x.cards not in coverage and x.cards != NO_CARDS:
                 v.fail(f"instances[{n}].cards", "names no cards of this cache")
     kept = sum(shape[0] for name, _, shape in arrays if name.endswith("_bricks"))
     cells = sum(int(np.prod(shape)) for name, _, shape in arrays if name.endswith("_indirection"))

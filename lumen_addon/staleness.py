@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from .bake import cards_hash, context_key, mesh_hash
+from .bake import NO_CARDS, cards_hash, context_key, mesh_hash, too_small_for_cards
 
 
 def _signature(obj) -> tuple:
@@ -36,6 +36,8 @@ def differs(obj, inst, settings, digests=None) -> bool:
     key = mesh_hash(placed, settings)
     if inst.mesh not in (key, context_key(key)):
         return True
+    if too_small_for_cards(placed, inst.matrix_world, settings.min_card_size):
+        return inst.cards != NO_CARDS
     return cards_hash(placed, inst.mesh, settings, digests) != inst.cards
 
 

@@ -39,7 +39,8 @@ def cancels(event) -> bool:
 def settings_from(scene) -> BakeSettings:
     s = scene.lumen.bake
     return BakeSettings(voxel_density=float(s.voxel_density), max_resolution=int(s.max_resolution),
-                        texel_density=float(s.texel_density), texel_budget=int(s.texel_budget))
+                        texel_density=float(s.texel_density), texel_budget=int(s.texel_budget),
+                        min_card_size=float(s.min_card_size))
 
 
 def mesh_sizes(depsgraph) -> list:

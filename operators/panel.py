@@ -58,6 +58,7 @@ class VIEW3D_PT_lumen_bake(_SidebarChild, bpy.types.Panel):
         col.prop(s, "texel_density")
         col.prop(s, "texel_budget")
         col.label(text=texel_budget_text(s.texel_budget))
+        col.prop(s, "min_card_size")
         layout.prop(s, "cache_dir")
 
 

@@ -102,6 +102,14 @@ class LumenBakeSettings(bpy.types.PropertyGroup):
                     "scene needs more, every object's is made blurrier to fit (with a warning). "
                     "The panel shows the atlas size and GPU memory it means",
         default=BAKE.texel_budget, min=4096)
+    min_card_size: FloatProperty(
+        name="Min Card Size",
+        description="Objects smaller than this on every side store no surface lighting of their "
+                    "own (emitters always do): light bouncing off them is taken from their "
+                    "surroundings, which misses most of what small objects bounce onto each "
+                    "other. Renders scatters of thousands of pebbles or leaves much faster. 0 "
+                    "(the default) gives every object its own",
+        default=BAKE.min_card_size, min=0.0, soft_max=1.0, subtype='DISTANCE', unit='LENGTH')
     cache_dir: StringProperty(
         name="Cache Folder",
         description="Where the bake is written and read from. // is the .blend file's folder and "

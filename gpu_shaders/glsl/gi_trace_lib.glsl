@@ -21,7 +21,7 @@
  * does. Without voxel lighting every object is searched. If no mesh is found the global trace
  * goes on.
  * gi_radiance(_from): the light at the hit (the surface cache's final light on a mesh hit, the voxel
- * lighting on a served global hit), sky_ray on a miss.
+ * lighting on a served global hit or on an object without cards), sky_ray on a miss.
  */
 #define GI_GLOBAL_STEPS 96
 
@@ -33,6 +33,34 @@
 float gi_thin_margin()
 {
   return gsdf.band.y;
+}
+
+/* World normal of mesh obj's surface at its hit q (the field's gradient over half a voxel). */
+vec3 gi_hit_normal(int obj, vec3 q)
+{
+  float h = sdf_object_texel(obj, 4).w;
+  vec3 nl = sdf_mesh_normal_local(obj, sdf_world_to_local(obj, q), 0.5 * h);
+  return normalize(transpose(mat3(sc_object_w2l(obj))) * nl);
+}
+
+/* The light a ray along dir reads at its hit q on mesh obj: the surface cache's (its cards'), or
+ * for an object the bake gave no cards (smaller than Min Card Size: bake.too_small_for_cards)
+ * the voxel lighting there, the light of its surroundings (weight 1; 0 and black where no voxel
+ * serves). weight: as sc_sample_world's (0: no card saw the hit). */
+vec3 gi_hit_light(int obj, vec3 q, vec3 dir, out float weight)
+{
+  if (sc_instance_range(obj).y > 0) {
+    return sc_sample_world(obj, q, dir, weight);
+  }
+  weight = 0.0;
+  vec3 L = vec3(0.0);
+  int level;
+  float v;
+  global_sdf_sample(q, level, v);
+  if (level >= 0 && vl_sample(level, q, dir, gi_hit_normal(obj, q), L)) {
+    weight = 1.0;
+  }
+  return L;
 }
 
 /* obj >= 0: a hit at t on mesh obj; obj = -1: a global-SDF hit at t served by voxel lighting,
@@ -91,10 +119,7 @@ bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t,
       if (found) {
         t = tr;
         vec3 q = o + t * dir;
-        float h = sdf_object_texel(obj, 4).w;
-        vec3 nl = sdf_mesh_normal_local(obj, sdf_world_to_local(obj, q), 0.5 * h);
-        vec3 normal = normalize(transpose(mat3(sc_object_w2l(obj))) * nl);
-        if (vl_sample(level, q, dir, normal, voxel_L)) {
+        if (vl_sample(level, q, dir, gi_hit_normal(obj, q), voxel_L)) {
           obj = -1;               /* served: no surface-cache lookup on the mesh */
         }
         return true;
@@ -133,7 +158,7 @@ vec3 gi_radiance_from(vec3 o, vec3 dir, float t_start, float tmax, out float hit
       weight = 1.0;
       return voxel_L;
     }
-    return sc_sample_world(obj, o + hit_t * dir, dir, weight);
+    return gi_hit_light(obj, o + hit_t * dir, dir, weight);
   }
   hit_t = tmax;
   weight = 1.0;

@@ -112,7 +112,7 @@ bool lumen_screen_hit(vec3 o, vec3 dir, float ts, ivec2 hit_px, out vec3 L)
     }
   }
   float w;
-  L = sc_sample_world(obj, q, dir, w);
+  L = gi_hit_light(obj, q, dir, w);
   return true;
 }
 

@@ -317,3 +317,29 @@ def test_loose_nan_vertex_is_ignored_with_a_warning_naming_the_object():
     assert np.array_equal(a.sample(p), b.sample(p))
     (ca,), (cb,) = bake.cards.values(), clean.cards.values()
     assert len(ca.cards) == len(cb.cards) and ca.coverage == cb.coverage
+
+
+def test_objects_under_min_card_size_get_no_cards(tmp_path):
+    """With Min Card Size 10 cm a pebble (8 cm) gets no cards and its mesh's cards are never
+    captured; the same mesh scaled to 40 cm, an emissive pebble and the default (0) keep theirs; the cache round-trips
+    the "no cards" key, and the estimate leaves the pebbles' texels out."""
+    from lumen_addon.bake import NO_CARDS
+    from lumen_addon.estimate import MeshSize, estimate
+
+    pv, pf = shapes.icosphere(0.04, 1)
+    glow = Material(emission_color=(1, 1, 1), emission_strength=2.0)
+    objs = [ObjectInput("Pebble", pv, pf), ObjectInput("Pebble.001", pv, pf, shapes.matrix((0.2, 0, 0))),
+            ObjectInput("Rock", pv, pf, shapes.matrix((1, 0, 0), scale=5.0)),
+            ObjectInput("Ember", pv, pf, shapes.matrix((0, 1, 0)), materials=[glow])]
+    bake = bake_scene(objs, BakeSettings(voxel_density=16, min_card_size=0.1))
+    cards = {i.name: i.cards for i in bake.instances}
+    assert cards["Pebble"] == cards["Pebble.001"] == NO_CARDS
+    assert cards["Rock"] != NO_CARDS and cards["Ember"] not in (NO_CARDS, cards["Rock"])
+    assert set(bake.cards) == {cards["Rock"], cards["Ember"]}
+    write_cache(tmp_path / "c", bake)
+    assert_same(bake, read_cache(tmp_path / "c"))
+    every = bake_scene(objs[:1], BakeSettings(voxel_density=16))        # the default: 0
+    assert every.instances[0].cards != NO_CARDS and len(every.cards) == 1
+    small = [MeshSize(triangles=len(pf), extent=(0.08, 0.08, 0.08), world_scale=1.0)]
+    assert estimate(small, BakeSettings(min_card_size=0.1)).texels == 0
+    assert estimate(small, BakeSettings()).texels > 0
