@@ -216,7 +216,7 @@ def test_panel_draws_existing_properties_and_operators(blender):
     side = {k: props(v) for k, v in r["side"].items()}
     assert side == {"VIEW3D_PT_lumen": ["lumen.bake", "lumen.export_cache", "lumen.open_atlas"],
                     "VIEW3D_PT_lumen_bake": ["voxel_density", "max_resolution", "texel_density",
-                                             "texel_budget", "cache_dir"],
+                                             "texel_budget", "min_card_size", "cache_dir"],
                     "VIEW3D_PT_lumen_object": ["resolution_scale", "two_sided"],
                     "VIEW3D_PT_lumen_last_bake": []}, side
     assert r["side_gi"] == r["side"]               # the engine's settings are not in the sidebar
