@@ -81,7 +81,8 @@ def pack_cards(atlas, instance_cards) -> PackedCards:
         cards[row, 3] = (e["near"], e["far"], 0.0, 0.0)
         texel_card[ly:ly + h, lx:lx + w] = row
         texels += w * h
-    size = tuple(int(s) for s in atlas.size) if atlas is not None else (1, 1)
+    # at least 1 x 1: a bake whose every object is under Min Card Size has an empty atlas
+    size = tuple(max(int(s), 1) for s in atlas.size) if atlas is not None else (1, 1)
     return PackedCards(cards, inst_rows, texel_card, (width, height), size, texels)
 
 

@@ -114,7 +114,8 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
                       width: int = GRID_WIDTH, fine_cells: int = FINE_CELLS,
                       entry_budget: int = ENTRY_BUDGET) -> tuple:
     """The grid texture's texels for the object table `objects` [n, OBJECT_TEXELS, 4];
-    returns (texels float32 [rows, width, 4], info dict: dims, cell, margin, entries, overflow,
+    returns (texels float32 [rows, width, 4], info dict: dims, cell, margin, entries, overflow
+    (cells running the full loop), truncated (crowded cells keeping their nearest), the cap used,
     mean / max count).
 
     Two levels: a coarse grid (at most grid_max cells per axis) finds each cell's candidates
@@ -226,7 +227,8 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     flat[:entries, 1] = np.maximum(dists * (1.0 - 1e-6) - 1e-6, 0.0)
     tex[first_list:first_list + list_texels] = flat.reshape(-1, 4)
     info = dict(dims=tuple(int(v) for v in dims), cell=cell, margin=margin, entries=entries,
-                overflow=int(over.sum()), truncated=int(truncated.sum()), cap=int(cap), mean_count=float(kept.mean()) if ncells else 0.0,
+                overflow=int(over.sum()), truncated=int(truncated.sum()), cap=int(cap),
+                mean_count=float(kept.mean()) if ncells else 0.0,
                 max_count=int(counts.max()) if ncells else 0)
     return tex.reshape(rows, width, 4), info
 

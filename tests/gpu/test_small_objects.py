@@ -70,3 +70,41 @@ def test_pebbles_without_cards_bounce_the_light_around_them(tmp_path):
     assert abs(a[seen].mean() / b[seen].mean() - 1.0) < 0.04
     assert abs(a[among].mean() / b[among].mean() - 1.0) < 0.03
     assert ia[rest].mean() > 0.5 * ib[rest].mean()
+
+
+ONLY_SMALL = """
+import viewport_harness
+from lumen_gi.gpu_shaders import engine
+
+scene = empty_scene(voxel_density=10.0, cache_dir="cache")
+for i in range(5):
+    cube(f"Pebble{i}", 0.06, (0.1 * i, 0.0, 0.03))
+aimed_camera((0.0, -1.0, 1.0), (0.2, 0.0, 0.0))
+scene.world = bpy.data.worlds.new("Sky")
+scene.world.color = (0.3, 0.3, 0.3)
+scene.render.engine = "LUMEN_GI"
+scene.render.resolution_x = scene.render.resolution_y = 24
+scene.lumen.engine.render_frames = 1
+scene.lumen.bake.min_card_size = 0.1
+out = {"bake": bake()}
+bpy.ops.render.render()
+R = engine.LAST_RENDER
+out["f12_error"] = R.get("error")
+out["tiles"] = list(R.get("gi_sc_tiles", (-1, -1)))
+out["lit"] = float(np.asarray(R["combined"])[..., :3].max())
+drawn = viewport_harness.run(scene, engine.LumenGIRenderEngine, 24, 24, redraws=2)
+out["view_error"] = engine.LAST_RENDER.get("error")
+out["view_finite"] = bool(np.isfinite(np.asarray(drawn["drawn"])).all())
+emit(**out)
+"""
+
+
+def test_a_scene_of_only_small_objects_renders(tmp_path):
+    """Every object under Min Card Size: the bake has no cards at all (an empty atlas), and F12
+    and the viewport still draw (the empty atlas failed as a 0 x 0 texture)."""
+    res = run_python(ONLY_SMALL, tmp_path, timeout=300)
+    assert res.returncode == 0, res.explain()
+    r = res.result
+    assert r["bake"][0] == ["FINISHED"] and r["f12_error"] is None, r
+    assert r["tiles"][1] == 0 and r["lit"] > 0.0, r
+    assert r["view_error"] is None and r["view_finite"], r
