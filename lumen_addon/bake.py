@@ -268,7 +268,7 @@ def too_small_for_cards(obj, matrix, min_size: float) -> bool:
     """Whether an object gets no cards: its world bounds are under `min_size` on every axis
     and none of its materials emits (emitters keep theirs: their light is read from cards).
     Why: a card has at least 4x4 texels, so a scatter of 5,000 8-cm pebbles held 540
-    surface-cache tiles (the floor under them 25) and one F12 GI iteration relit them all: 77 s,
+    surface-cache tiles (74 without them) and one F12 GI iteration relit them all: 77 s,
     30 s at min_card_size 0.1 (tools/odd_scenes.py dense_scatter). Lumen leaves such meshes out
     of its surface cache too (MeshCardsMinSize, 10 cm). Rays that hit one read the voxel
     lighting there (gi_trace_lib.glsl gi_hit_light), the light around it, which misses most of
