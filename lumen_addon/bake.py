@@ -271,7 +271,7 @@ def too_small_for_cards(obj, matrix, min_size: float) -> bool:
     surface-cache tiles (74 without them) and one F12 GI iteration relit them all: 77 s,
     30 s at min_card_size 0.1 (tools/odd_scenes.py dense_scatter). Lumen leaves such meshes out
     of its surface cache too (MeshCardsMinSize, 10 cm). Rays that hit one read the voxel
-    lighting there (gi_trace_lib.glsl gi_hit_light), the light around it, which misses most of
+    lighting there (gi_trace_lib.glsl gi_trace_lit_from), the light around it, which misses most of
     the light pebbles bounce onto each other (tests/gpu/test_small_objects.py: a third of their
     indirect light): so it is off by default (0), a setting for scatters that must render fast."""
     if not min_size > 0:

@@ -43,30 +43,11 @@ vec3 gi_hit_normal(int obj, vec3 q)
   return normalize(transpose(mat3(sc_object_w2l(obj))) * nl);
 }
 
-/* The light a ray along dir reads at its hit q on mesh obj: the surface cache's (its cards'), or
- * for an object the bake gave no cards (smaller than Min Card Size: bake.too_small_for_cards)
- * the voxel lighting there, the light of its surroundings (weight 1; 0 and black where no voxel
- * serves). weight: as sc_sample_world's (0: no card saw the hit). */
-vec3 gi_hit_light(int obj, vec3 q, vec3 dir, out float weight)
-{
-  if (sc_instance_range(obj).y > 0) {
-    return sc_sample_world(obj, q, dir, weight);
-  }
-  weight = 0.0;
-  vec3 L = vec3(0.0);
-  int level;
-  float v;
-  global_sdf_sample(q, level, v);
-  if (level >= 0 && vl_sample(level, q, dir, gi_hit_normal(obj, q), L)) {
-    weight = 1.0;
-  }
-  return L;
-}
-
 /* obj >= 0: a hit at t on mesh obj; obj = -1: a hit at t served by voxel lighting, whose
- * radiance is voxel_L (a global-SDF hit, or a near hit on an object the bake gave no cards). The ray is traced from t_start (> 0 where something else, the
- * screen trace, has shown [0, t_start] empty): on the mesh SDFs up to GSDF_MESH_SPLIT, then on
- * the global SDF. */
+ * radiance is voxel_L: a global-SDF hit, or a near hit on an object the bake gave no cards
+ * (smaller than Min Card Size: bake.too_small_for_cards; the voxels hold the light around it).
+ * The ray is traced from t_start (> 0 where something else, the screen trace, has shown
+ * [0, t_start] empty): on the mesh SDFs up to GSDF_MESH_SPLIT, then on the global SDF. */
 bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t, out int obj,
                        out vec3 voxel_L)
 {

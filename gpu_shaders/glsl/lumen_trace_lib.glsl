@@ -77,7 +77,7 @@ bool lumen_screen_walk(vec3 o, vec3 dir, float tmax, out float t_free, out float
  * ray's side (an SDF hit lies there; read on the plane, a wall thinner than a voxel would give
  * either side's light); beyond GSDF_MESH_SPLIT, where the SDF trace's hits read voxel lighting,
  * voxel lighting there too (the G-buffer normal choosing its faces), the surface cache where it
- * holds nothing. A hit on something the SDFs do not hold (no object within 2 voxels) is left to
+ * holds nothing; so does a hit on an object the bake gave no cards (Min Card Size). A hit on something the SDFs do not hold (no object within 2 voxels) is left to
  * the SDF trace. 0 (HITS "COLOUR") the screen colour over the ray's cone (screen_cone).
  * Why voxel lighting far: a surface-cache read (the mesh SDF's normal, every card's 2x2 texels,
  * each tested against walls between) costs more than a whole SDF ray that ends in voxel
@@ -103,16 +103,16 @@ bool lumen_screen_hit(vec3 o, vec3 dir, float ts, ivec2 hit_px, out vec3 L)
     return false;
   }
   vec3 q = p + ns * (GI_HIT_VOXELS * h);
-  if (ts >= GSDF_MESH_SPLIT) {
+  if (ts >= GSDF_MESH_SPLIT || sc_instance_range(obj).y == 0) {   /* far, or no cards */
     int level;
     float v;
     global_sdf_sample(q, level, v);
-    if (vl_sample(level, q, dir, ns, L)) {
+    if (level >= 0 && vl_sample(level, q, dir, ns, L)) {
       return true;
     }
   }
   float w;
-  L = gi_hit_light(obj, q, dir, w);
+  L = sc_sample_world(obj, q, dir, w);
   return true;
 }
 

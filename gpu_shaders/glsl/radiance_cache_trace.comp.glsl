@@ -42,7 +42,7 @@ void main()
     vec3 voxel_L;
     if (gi_trace_lit(P, dir, t_max, t, obj, voxel_L)) {
       float w;
-      sum += obj < 0 ? voxel_L : gi_hit_light(obj, P + t * dir, dir, w);
+      sum += obj < 0 ? voxel_L : sc_sample_world(obj, P + t * dir, dir, w);
       nearest = min(nearest, t);
     }
     else {

@@ -1,6 +1,6 @@
 """Min Card Size (bake.too_small_for_cards), a setting off by default: objects smaller than it
 (a scatter of 6-cm pebbles) get no cards, so the surface cache holds fewer tiles and F12 relights
-fewer, and rays that hit them read the voxel lighting there (gi_trace_lib.glsl gi_hit_light).
+fewer, and rays that hit them read the voxel lighting there (gi_trace_lib.glsl gi_trace_lit_from).
 Against a bake that gives every pebble its cards: fewer tiles, the image within 4% on average,
 the floor among the pebbles the same; what it costs, printed: the pebbles' own bounced light
 (measured: 0.057 against 0.079; read as black, 0.054), the light they bounce onto each other."""
