@@ -14,8 +14,8 @@ Arrays (uploaded by surface_cache.py as they are, x fastest):
     texel 2 = (rect_min u, rect_min v, rect_max u, rect_max v)   mesh-local metres, cards.PLANE axes
     texel 3 = (near, far, emissive texels, 0)                    depth = AXES[axis] . p_local;
               emissive texels: 0 here, counted by surface_cache.mark_emissive_cards
-- `instances`: float32 [instances, 1, 4] = (first card row, card count, emissive cards, 0) per object-table row
-  (the emissive count set by surface_cache.mark_emissive_cards).
+- `instances`: float32 [instances, 1, 4] = (first card row, card count, emissive cards, 0) per
+  object-table row (the emissive count set by surface_cache.mark_emissive_cards).
 - `texel_card`: float32 [H, W] lighting texel -> its card row, -1 where no card is.
 Integers in float texels are exact below 2^24 (checked).
 """

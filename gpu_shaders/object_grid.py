@@ -52,9 +52,9 @@ import numpy as np
 
 GRID_MAX = 32
 GRID_WIDTH = 1024
-CELL_CAP = 1024           # entries a cell lists at most (fewer where the lists would pass ENTRY_BUDGET)
+CELL_CAP = 1024           # entries a cell lists at most (fewer where the lists pass ENTRY_BUDGET)
 ENTRY_BUDGET = 1 << 20    # list entries in all (4 MiB of RGBA32F texels)
-EXACT_VOXELS = 4.0        # a truncated cell's bound: at least this many voxels of its listed objects
+EXACT_VOXELS = 4.0        # a truncated cell's bound: at least this many voxels of its objects
 REACH_MARGINS = 4.0
 HEADER_TEXELS = 3
 FAR = 1e30
