@@ -53,7 +53,7 @@ import numpy as np
 GRID_MAX = 32
 GRID_WIDTH = 1024
 CELL_CAP = 1024           # entries a cell lists at most (fewer where the lists pass ENTRY_BUDGET)
-ENTRY_BUDGET = 1 << 20    # list entries in all (4 MiB of RGBA32F texels)
+ENTRY_BUDGET = 1 << 20    # list entries in all (2 a texel: 8 MiB of RGBA32F)
 EXACT_VOXELS = 4.0        # a truncated cell's bound: at least this many voxels of its objects
 REACH_MARGINS = 4.0
 HEADER_TEXELS = 3
