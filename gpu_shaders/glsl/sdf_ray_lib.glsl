@@ -135,9 +135,14 @@ bool gi_visible_between(vec3 pa, float da, vec3 pb, float db, float voxel)
 bool gi_visible_from(vec3 pa, float da, vec3 b, vec3 nb, float voxel)
 {
   vec3 pb = gi_lifted(b, nb, voxel);
-  if (length(pb - pa) < GI_HIT_VOXELS * voxel) {
+  if (length(pb - pa) < max(GI_HIT_VOXELS * voxel, da - GI_HIT_VOXELS * voxel)) {
     return true;           /* before sampling b's end: the pairs closer than half a voxel (an
-                            * anti-aliasing sample's neighbours, mostly) cost no field sample */
+                            * anti-aliasing sample's neighbours, mostly) cost no field sample,
+                            * nor does a pb inside a's empty ball less the hit shell (every point
+                            * of the segment is farther than the shell from any surface, so
+                            * the trace would find nothing: a surface-cache read tests each
+                            * card texel around its hit this way; among 1,000 spheres, where
+                            * that read is most hits' cost, the frame 0.94x) */
   }
   float h;
   int obj;
