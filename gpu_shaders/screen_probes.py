@@ -34,7 +34,9 @@ Per frame, one GLSL pass each:
     screen_probe_fallback   16 rays per listed pixel, one invocation each (full work groups:
                             traced inside integrate, each group waited on its slowest pixel);
                             at most as many rays in all as the uniform probes trace (fewer per
-                            pixel, strata rotating over frames, when the list is long)
+                            pixel, strata rotating over frames, when the list is long; past 1
+                            ray a pixel, the viewport's later rounds trace each 4x4 block of
+                            pixels on one turn in 2, 4, ... and keep its history on the others)
     screen_probe_temporal   mix with the history (running mean for F12, exponential in the viewport)
     screen_probe_temporal_split  the viewport with GISettings.split > 1: one pixel of each
                             block integrated per redraw (integrate's px_step, px_phase), its
@@ -128,7 +130,8 @@ FALLBACK = compute.Pass("screen_probe_fallback",
                                 ("fb_list", 'RGBA32F', {'READ'}), ("fb_counter", 'R32I', {'READ'}),
                                 ("rc_marks", 'R32F')),
                         push=(('VEC3', 'cam_pos'), ('INT', 'frame'), ('FLOAT', 't_max'),
-                              radiance_cache.CAMERA, ('INT', 'fb_budget'), ('INT', 'fb_turn')),
+                              radiance_cache.CAMERA, ('INT', 'fb_budget'), ('INT', 'fb_turn'),
+                              ('INT', 'fb_round')),
                         group=(FALLBACK_GROUP, 1, 1))
 TEMPORAL = compute.Pass("screen_probe_temporal", samplers=("indirect_new", "indirect_history"),
                         push=(('FLOAT', 'blend'),))
@@ -333,6 +336,9 @@ class ScreenProbes:
                      fb_budget=int((FALLBACK_BUDGET if fallback_budget is None else fallback_budget)
                                    * gw * gh * r * r) // (step * step),
                      fb_turn=int(frame) // split,        # a pixel's turns (the split's)
+                     # its rounds since the history's reset: from the second, a pixel over
+                     # the budget may skip a turn (temporal_split keeps its history); F12 -1
+                     fb_round=int(split_frame) // split if split > 1 else -1,
                      gbuf_position=gpos, gbuf_normal=gnor, cam_pos=cam,
                      out_image=tex["integrated"], fb_list=tex["fb_list"],
                      fb_counter=tex["fb_counter"],

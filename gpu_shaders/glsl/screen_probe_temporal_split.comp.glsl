@@ -45,6 +45,12 @@ void main()
   int m = frame > phase ? (frame - 1 - phase) / split + 1 : 0;
   if (frame % split == phase) {
     vec4 e = texelFetch(indirect_new, px, 0);
+    if (e.w == -2.0) {
+      /* a turn screen_probe_fallback skipped (over its budget, from the second round on: a
+       * history exists): no sample, the history as it is */
+      imageStore(out_image, px, texelFetch(indirect_history, px, 0));
+      return;
+    }
     /* the first round's sample saw probes partly filled from a quarter of their rays
      * (screen_probe_trace's texel_fill): the second round replaces it */
     int kept = frame >= split ? m - 1 : m;

@@ -10,6 +10,9 @@ each listed pixel is flagged w = 0 and listed once, and there are enough of them
 The budget (a list longer than the uniform probes' rays allow traces m < 16 rays a pixel, strata
 rotating over 16 / m frames): the pass with a budget of 4 rays a pixel, run over the 4 frames of
 one cycle, averages exactly the inline pass's 16 rays of that cycle's rotation (sums to 1e-5).
+Over the budget even at 1 ray a pixel (a budget of a quarter of the list), from the viewport's
+second round each pixel traces on exactly one of 4 consecutive turns and writes w = -2 on the
+others; in the first round (fb_round 0) and in F12 (-1) every pixel traces.
 """
 import sys
 from pathlib import Path
@@ -116,7 +119,7 @@ def _wrapped(self, res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels=No
         screen_probes.FALLBACK.run(self.textures["fb_list"].width * self.textures["fb_list"].height,
                                    scene=res, cache=cache, gsdf=gsdf, sky=sky, voxels=voxels,
                                    frame=f, t_max=float(t_max), fb_budget=4 * count,
-                                   fb_turn=f,
+                                   fb_turn=f, fb_round=-1,
                                    gbuf_position=g["position"], gbuf_normal=g["normal"],
                                    cam_pos=compute.vec(cam_pos), out_image=part,
                                    fb_list=self.textures["fb_list"],
@@ -124,11 +127,34 @@ def _wrapped(self, res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels=No
                                    **radiance_cache.lookup_inputs(rcache, cam_pos))
         mean += compute.read(part)[ys, xs, :3] / 4.0
     budget_diff = float(np.abs(mean - R16).max() / max(R16.max(), 1e-9)) if count else -1.0
+    # over the budget at 1 ray a pixel, in the viewport's later rounds: with a budget of a
+    # quarter of the list, each pixel traces on exactly one turn of four (w 0), else w -2
+    traced = np.zeros(len(xs), int)
+    every = {}
+    for f, fb_round in ((0, 1), (1, 1), (2, 1), (3, 1), (0, 0), (0, -1)):
+        part = compute.texture((self.width, self.height))
+        screen_probes.FALLBACK.run(self.textures["fb_list"].width * self.textures["fb_list"].height,
+                                   scene=res, cache=cache, gsdf=gsdf, sky=sky, voxels=voxels,
+                                   frame=f, t_max=float(t_max), fb_budget=-(-count // 4),
+                                   fb_turn=f, fb_round=fb_round,
+                                   gbuf_position=g["position"], gbuf_normal=g["normal"],
+                                   cam_pos=compute.vec(cam_pos), out_image=part,
+                                   fb_list=self.textures["fb_list"],
+                                   fb_counter=self.textures["fb_counter"],
+                                   **radiance_cache.lookup_inputs(rcache, cam_pos))
+        flags = compute.read(part)[ys, xs, 3]
+        if fb_round >= 1:
+            traced += flags == 0.0
+            skipped_ok = bool(np.isin(flags, (0.0, -2.0)).all())
+        else:
+            every[fb_round] = bool((flags == 0.0).all())     # no turn skipped
     ROWS.append(dict(count=count, unique=len(set(zip(xs.tolist(), ys.tolist()))),
                      w_zero=bool((E[ys, xs, 3] == 0).all()),
                      max_diff=float(np.abs(E[ys, xs, :3] - R[ys, xs, :3]).max()) if count else -1.0,
                      max_E=float(E[ys, xs, :3].max()) if count else 0.0,
-                     budget_diff=budget_diff))
+                     budget_diff=budget_diff,
+                     skip_once=bool((traced == 1).all()) if count else False,
+                     skip_flags=skipped_ok, first_round_all=every[0], f12_all=every[-1]))
     return out
 
 screen_probes.ScreenProbes.gather = _wrapped
@@ -182,3 +208,5 @@ def test_fallback_list_traces_exactly_the_inline_rays(tmp_path):
             assert r["max_E"] > 0.0                      # the rays reached the lit scene
             assert r["max_diff"] == 0.0                  # the same rays, seeds and sums
             assert 0.0 <= r["budget_diff"] < 1e-5        # a cycle of 4 frames: the 16 strata
+            assert r["skip_flags"] and r["skip_once"]    # over budget: 1 turn in 4 a pixel
+            assert r["first_round_all"] and r["f12_all"]  # never in the first round nor F12

@@ -2,7 +2,8 @@
 (4x4) block
 and screen_probe_temporal_split blends it into the history by that pixel's own sample count,
 keeps the others, and fills pixels not yet integrated from this redraw's neighbours on their
-plane; its first round's sample (probes partly filled) is replaced by the second's. Exact: per redraw the integrated pixels carry one known value and every other pixel
+plane; its first round's sample (probes partly filled) is replaced by the second's; a turn the
+fallback skipped (w -2: over its budget) keeps the history as it is. Exact: per redraw the integrated pixels carry one known value and every other pixel
 garbage, so any wrong turn (GLSL's Bayer order against screen_probes.split_phase), wrong count or
 garbage read shows. llvmpipe, bpy in a subprocess."""
 import sys
@@ -48,6 +49,8 @@ def job():
           new = np.full((H, W, 4), {GARBAGE}, np.float32)
           mine = phase == f % split
           new[mine] = (f + 1.0, 2.0 * f, 1.0, 1.0)
+          if f >= split and (f // split) % 2 == 1:       # turns the fallback skipped: w -2
+              new[mine & ((xs + ys) % 3 == 0)] = ({GARBAGE}, {GARBAGE}, {GARBAGE}, -2.0)
           out = probes.temporal_split(tex(new), gbuf, (0.0, 0.0, 5.0), split, {HISTORY})
           shown.append(compute.read(out).tolist())
       OUT[f"shown{{split}}"] = shown
@@ -61,7 +64,8 @@ emit(**OUT)
 def expected(split):
     """The same history in numpy: per pixel its own turns (Bayer order), a running mean
     then exponential over HISTORY, the first round's sample replaced by the second's; before its
-    first turn this redraw's value (one per redraw)."""
+    first turn this redraw's value (one per redraw); a skipped turn (w -2) changes nothing but
+    still counts as a turn."""
     ys, xs = np.mgrid[0:H, 0:W]
     b = 2 * ((xs & 1) ^ (ys & 1)) + (ys & 1)
     if split == 16:
@@ -74,7 +78,8 @@ def expected(split):
         mine = b == f % split
         kept = count - 1 if f >= split else count
         blend = np.maximum(1.0 / (kept + 1), 1.0 / HISTORY)[..., None]
-        hist = np.where(mine[..., None], hist * (1 - blend) + v * blend, hist)
+        sample = mine & ~((f >= split) & ((f // split) % 2 == 1) & ((xs + ys) % 3 == 0))
+        hist = np.where(sample[..., None], hist * (1 - blend) + v * blend, hist)
         count = count + mine
         out.append(np.where((count > 0)[..., None], hist, v))
     return out
