@@ -22,7 +22,7 @@ import gpu
 import numpy as np
 
 from . import glsl_include
-from .object_grid import build_object_grid
+from .object_grid import build_object_grid, instance_bounds
 from .packing import OBJECT_TEXELS, PARKED, PackedScene, pack_bake, row_table
 
 GLSL = Path(__file__).resolve().parent / "glsl"
@@ -112,6 +112,7 @@ class SceneResources:
         if not len(rows):
             raise ValueError("the bake has no objects to trace")
         t0 = time.perf_counter()
+        self._log_changes(getattr(self.packed, "objects", None), rows)
         self.packed.objects = rows
         # the last line's unused rows parked (a bounding sphere 1e30 m away: every loop over
         # the objects, sdf_object_count's, skips them)
@@ -123,6 +124,41 @@ class SceneResources:
         self.grid = gpu.types.GPUTexture((texels.shape[1], texels.shape[0]), format='RGBA32F',
                                          data=float_buffer(texels))
         self.grid_info["seconds"] = time.perf_counter() - t0
+
+    CHANGE_LOG = 64        # object-table changes kept for consumers that lag behind
+
+    def _log_changes(self, old, new):
+        """Record which world boxes the new object rows change (objects_version + 1): the old and
+        new world AABBs (object_grid.instance_bounds, half a voxel grown) of every row that
+        differs, or None (everything) when the table's size changed. A value of the scene SDF
+        changes only within those boxes, so the global SDF refreshes only their cells."""
+        if not hasattr(self, "objects_version"):
+            self.objects_version, self.changes = 0, []
+            return
+        boxes = None
+        if old is not None and np.shape(old) == np.shape(new):
+            old, new = np.asarray(old, np.float32), np.asarray(new, np.float32)
+            rows = np.flatnonzero((old != new).reshape(len(new), -1).any(axis=1))
+            va, _, _, alo, ahi, _ = instance_bounds(old[rows])
+            vb, _, _, blo, bhi, _ = instance_bounds(new[rows])
+            # a row moved a little (dragged): one box around both; moved far: two
+            touch = va & vb & np.all((alo <= bhi) & (blo <= ahi), axis=1)
+            boxes = [(np.minimum(alo[i], blo[i]), np.maximum(ahi[i], bhi[i]))
+                     for i in np.flatnonzero(touch)]
+            boxes += [(alo[i], ahi[i]) for i in np.flatnonzero(va & ~touch)]
+            boxes += [(blo[i], bhi[i]) for i in np.flatnonzero(vb & ~touch)]
+        self.objects_version += 1
+        self.changes = (self.changes + [(self.objects_version, boxes)])[-self.CHANGE_LOG:]
+
+    def boxes_since(self, version: int):
+        """The world boxes (lo, hi) that changed after object-table version `version`, or None
+        when that is unknown (a size change, or older than the log): then everything did."""
+        if version == self.objects_version:
+            return []
+        later = [b for v, b in self.changes if v > version]
+        if len(later) != self.objects_version - version or any(b is None for b in later):
+            return None
+        return [box for b in later for box in b]
 
     @classmethod
     def from_bake(cls, bake, mip: int = 0) -> "SceneResources":

@@ -10,6 +10,9 @@
  *   build_prev    xyz: the previous first cell, w > 0.5: scroll (only cells that were outside the
  *                 previous box are evaluated; the others keep their values)
  *   build_band    stored values are min(d, band): beyond the band only a conservative bound
+ *   build_box     w > 0.5: refresh only the world cells [xyz, build_box_end.xyz) that lie in the
+ *                 level (objects moved there: GlobalSDF.update's dirty boxes); the dispatch
+ *                 covers the box, not the level
  * sdf_scene_reach: the object grid's value where it is exact below the band, else every object
  * (in open space at the coarse levels, whose band reaches past the grid's margin).
  */
@@ -17,11 +20,22 @@ void main()
 {
   ivec3 t = ivec3(gl_GlobalInvocationID.xyz);
   int n = imageSize(gsdf_out).x;
-  if (any(greaterThanEqual(t, ivec3(n)))) {
-    return;
-  }
   ivec3 o = ivec3(round(build_origin.xyz));
-  ivec3 cell = o + gsdf_imod(t - o, n);
+  ivec3 cell;
+  if (build_box.w > 0.5) {
+    cell = ivec3(round(build_box.xyz)) + t;
+    if (any(greaterThanEqual(cell, ivec3(round(build_box_end.xyz))))
+        || any(lessThan(cell, o)) || any(greaterThanEqual(cell, o + n))) {
+      return;
+    }
+    t = gsdf_imod(cell, n);            /* the texel that holds the world cell */
+  }
+  else {
+    if (any(greaterThanEqual(t, ivec3(n)))) {
+      return;
+    }
+    cell = o + gsdf_imod(t - o, n);
+  }
   if (build_prev.w > 0.5) {
     ivec3 q = ivec3(round(build_prev.xyz));
     if (all(greaterThanEqual(cell, q)) && all(lessThan(cell, q + n))) {
