@@ -137,8 +137,14 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         probes.prev = None       # no importance-sampling prior from before (deterministic F12)
     rcache = (_radiance_cache(state, gi)          # the screen probes' far field (not VXGI's)
               if gi.radiance_cache and gi.gather == "PROBES" and gather is None else None)
+    # F12 and a new atlas or cards start from zero; the viewport keeps the light it has while
+    # the budget relights every tile (surface_cache.refresh_lighting)
+    hard_reset = final or bool(changes & {"atlas", "cards"})
     if final or scene_changed:
-        cache.reset_lighting()
+        if hard_reset:
+            cache.reset_lighting()
+        else:
+            cache.refresh_lighting()
         if rcache is not None:
             rcache.reset = True                  # every probe is traced again
     if final:
@@ -169,7 +175,7 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
     # surface_cache_direct pass 10.4 -> 4.4 ms a redraw on average, 0 once every tile is lit).
     direct_tiles = tiles if final else _first_updates(cache, tiles)
     cache.light_direct(res, state.light_texture, len(state.lights), tiles=direct_tiles)
-    if scene_changed and not final:
+    if scene_changed and hard_reset and not final:
         # the whole atlas once after a reset (combine then follows the relit tiles): the tiles
         # not yet relit show their emission at once (F12's first iteration relights them all)
         cache.combine(res)

@@ -177,6 +177,18 @@ class SurfaceCache:
             tex.clear(format='FLOAT', value=(0.0, 0.0, 0.0, 0.0))
         self.pages.reset()
 
+    def refresh_lighting(self):
+        """The viewport's answer to objects, lights or the sky changing: every tile is first in
+        line again and restarts its blends (its update count reset, as reset_lighting), but keeps
+        its light until it is relit, as Lumen's surface cache does. Why: reset_lighting zeroed
+        the whole atlas, so moving one sphere among 1,000 left every tile not yet relit showing
+        its emission alone (all the bounce light gone) for the ~160 redraws the budget takes to
+        relight 1,299 tiles. The relaxation deltas are cleared (no over-relaxation from a step
+        taken under the old scene)."""
+        lw, lh = self.packed.lighting_size
+        self.delta = _tex((lw, lh), 'RGBA32F', np.zeros((lh, lw, 4), np.float32))
+        self.pages.reset()
+
     # --- binding for other passes ------------------------------------------------------------
     @staticmethod
     def declare(info, first_slot: int) -> int:

@@ -4,7 +4,8 @@ The lecture's surface-cache update budget (UE: a fixed number of card captures a
 the lighting updated per frame): a viewport frame relights only `budget` tiles of 8x8 radiosity
 probes (32x32 lighting texels), so its cost no longer grows with the scene's total card area. A
 tile is chosen by priority:
-  1. never lit since the lighting was reset (the scene changed): these come first;
+  1. never lit since the lighting was reset (the scene changed; the viewport's tiles keep
+     their old light until then: SurfaceCache.refresh_lighting): these come first;
   2. then by age (frames since the tile's last update) times 2 when a card of the tile belongs to
      an instance inside the view frustum, divided by 1 + distance / 10 m: visible and near tiles
      refresh more often, every tile is refreshed eventually (its age grows without bound).
