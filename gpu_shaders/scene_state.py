@@ -85,6 +85,7 @@ class SceneState:
         self.camera_hidden = frozenset()  # instance names the camera does not see (no G-buffer
                                           # pixel, still traced): the screen trace's blind spots
         self._hidden_rows = (None, None, np.zeros(0, np.int32))
+        self._row_cache = None      # (packed, bake, keys, matrices, rows) of the last upload
         self._hidden_source = None   # the visibility array camera_hidden was made from
         self.gi_frame = 0            # frames of GI run (jitter sequences, clipmap cadence)
         self.gi_view_key = None      # camera + size of the probes' history
@@ -170,6 +171,10 @@ class SceneState:
         placed = [SimpleNamespace(name=n, mesh=k, matrix_world=m)
                   for n, k, m in zip(names, keys, mats)]
         self.resources = SceneResources(pack_scene(bake.meshes, placed, 0))
+        # pack_scene's rows are instance_row's: the next object upload recomputes only changes
+        packed = self.resources.packed
+        self._row_cache = (packed, bake, list(keys),
+                           np.asarray(mats, np.float64).reshape(len(keys), 4, 4), packed.objects)
 
     def _upload_lights(self):
         import gpu
@@ -184,11 +189,21 @@ class SceneState:
         """Rebuild only the object table texture (and its object grid) from the packed offsets
         already on the GPU."""
         packed = self.resources.packed
-        rows = [instance_row(bake.meshes[key], mw, packed.indirection_offset[key])
-                for key, mw in zip(keys, mats)]
-        if not rows:
+        if not len(keys):
             raise ValueError("the bake has no objects to trace")
-        self.resources.set_objects(np.stack(rows))     # and the object grid built from them
+        m = np.asarray(mats, np.float64).reshape(len(keys), 4, 4)
+        prev = self._row_cache
+        if prev is not None and prev[0] is packed and prev[1] is bake and prev[2] == list(keys):
+            # the same instances: only the rows whose matrix changed (one object dragged among
+            # 1,000: 1 row, not 1,000, each an SVD and an inverse)
+            rows = prev[4].copy()
+            for i in np.flatnonzero((m != prev[3]).reshape(len(keys), -1).any(axis=1)):
+                rows[i] = instance_row(bake.meshes[keys[i]], m[i], packed.indirection_offset[keys[i]])
+        else:
+            rows = np.stack([instance_row(bake.meshes[key], mw, packed.indirection_offset[key])
+                             for key, mw in zip(keys, m)])
+        self._row_cache = (packed, bake, list(keys), m, rows)
+        self.resources.set_objects(rows)     # and the object grid built from them
 
     def set_camera_hidden(self, objects, visible):
         """Remember which extracted instances the camera does not see (ObjectInputs and their
