@@ -25,6 +25,7 @@ Shader compilation happens in the first N's warm-ups.
 --alternate R: then R rounds that reopen each N's baked scene in turn and time its still frames
 again, and the ratio N=max / N=min per round and their median (a shared host's speed drifts by
 up to 2x over minutes: the two N of one round run back to back).
+--move K: per N, the K redraws after one object moves 0.4 m (8 still redraws before it).
 --passes: every compute dispatch timed by shader (bench/pass_profile.py's timed_dispatches; on
 llvmpipe a dispatch runs before it returns), per N the still viewport frames' means and the
 last F12's sums (and the default F12's), and a table of each pass at N=min against N=max,
@@ -165,6 +166,8 @@ def measure(n: int, args, tmp: Path) -> dict:
                     first_split=rows[0],
                     passes={k: statistics.fmean(r.get(k, 0.0) for r in still) * 1000
                             for k in {k for r in still for k in r}})
+        if args.move:
+            view["move"] = move_redraws(scene, args, n)
         if n > args.f12_max:
             return dict(n=n, bake=bake_seconds, view=view, f12=None,
                         eevee=eevee_times(scene, args.repeat) if args.eevee else None,
@@ -227,6 +230,33 @@ def alternate(counts, args, tmp: Path) -> dict:
                 raise RuntimeError(engine.LAST_RENDER.get("traceback"))
             means[n].append(statistics.fmean(out["seconds"][1:]) * 1000)
     return means
+
+
+def move_redraws(scene, args, n: int) -> list:
+    """ms of the `args.move` redraws after one object (the middle one) moves 0.4 m, following
+    MOVE_WARM still redraws: what an artist dragging an object waits for (the global SDF's
+    levels, the object table and grid, the voxel lighting and the surface cache follow it on
+    their own frames, so the cost spreads over the next 8 redraws)."""
+    import bpy
+
+    import viewport_harness
+    from lumen_gi.gpu_shaders import engine
+
+    name = f"Obj{n // 2}"
+
+    def on_redraw(i):
+        if i == MOVE_WARM - 1:
+            bpy.data.objects[name].location.x += 0.4
+
+    out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
+                               redraws=MOVE_WARM + args.move, on_redraw=on_redraw)
+    if "error" in engine.LAST_RENDER:
+        raise RuntimeError(engine.LAST_RENDER.get("traceback", engine.LAST_RENDER["error"]))
+    bpy.data.objects[name].location.x -= 0.4
+    return [s * 1000 for s in out["seconds"][MOVE_WARM:]]
+
+
+MOVE_WARM = 8
 
 
 def eevee_times(scene, repeat: int) -> dict:
@@ -336,6 +366,9 @@ def main():
     ap.add_argument("--alternate", type=int, default=0, metavar="R",
                     help="then R rounds reopening each count's scene in turn: the ratio per "
                          "round (robust to a shared host's drift)")
+    ap.add_argument("--move", type=int, default=0, metavar="K",
+                    help="then time the K redraws after one object moves 0.4 m (8 covers "
+                         "every clipmap level's frame)")
     ap.add_argument("--gbuffer-only", action="store_true",
                     help="time extraction + G-buffer alone, old path against new, no bake")
     args = ap.parse_args()
@@ -368,6 +401,12 @@ def main():
                   f"last still split ms: "
                   f"{fmt(v['split'])}", flush=True)
             print(f"    first-frame split ms: {fmt(v['first_split'])}", flush=True)
+            if "move" in v:
+                m = v["move"]
+                print(f"  after one object moved: {len(m)} redraws ms " +
+                      ", ".join(f"{x:.0f}" for x in m) +
+                      f" (sum {sum(m):.0f}, max {max(m):.0f}; still mean {v['mean']:.0f})",
+                      flush=True)
             if f is not None:
                 print(f"  F12 (1 GI iteration): median {f['median']:.1f} ms; split ms: "
                       f"{fmt(f['split'])}, meshes read {f['meshes_read']}", flush=True)
