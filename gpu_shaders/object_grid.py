@@ -95,10 +95,15 @@ def _cell_distance(inst, xyz, lo, cell, centre, radius, alo, ahi):
     larger of the gaps to its AABB and to its sphere."""
     clo = lo + xyz * cell
     chi = clo + cell
-    gap = np.linalg.norm(np.maximum(np.maximum(clo - ahi[inst], alo[inst] - chi), 0.0), axis=1)
-    sph = np.linalg.norm(np.maximum(np.maximum(clo - centre[inst], centre[inst] - chi), 0.0),
-                         axis=1) - radius[inst]
-    return np.maximum(gap, sph)
+    g = np.maximum(clo - ahi[inst], alo[inst] - chi)
+    np.maximum(g, 0.0, out=g)
+    c = centre[inst]
+    s = np.maximum(clo - c, c - chi)
+    np.maximum(s, 0.0, out=s)
+    # row-wise lengths by einsum: no squared temporaries (np.linalg.norm made two per call)
+    gap = np.sqrt(np.einsum("ij,ij->i", g, g))
+    sph = np.sqrt(np.einsum("ij,ij->i", s, s)) - radius[inst]
+    return np.maximum(gap, sph, out=gap)
 
 
 def _entry_cap(counts: np.ndarray, cap: int, budget: int) -> int:
