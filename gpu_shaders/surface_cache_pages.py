@@ -168,8 +168,9 @@ class PageSchedule:
         not see each other: an open sunlit ground far from the walls and objects on it is
         visible but read by no ray, while every wall of a room sees the others (measured on
         bench/quality_scenes: thin 170 tiles -> 95 seen, yard 221 -> 100; the rooms keep 90%+).
-        Pairs of visible x all tiles in numpy, in blocks of 256 visible tiles, once per camera
-        (cached until set_geometry or the camera changes)."""
+        Pairs of visible x all tiles in numpy, in blocks of 256 visible tiles (after the first,
+        against the tiles not yet seen only), once per camera (cached until set_geometry or the
+        camera changes)."""
         if self.geometry is None or self.area is None or cam_pos is None:
             return np.zeros(len(self.tiles), bool)
         key = (np.asarray(cam_pos, np.float64).tobytes(),
@@ -188,17 +189,29 @@ class PageSchedule:
         flat = length >= 0.9
         nrm = normal / np.maximum(length, 1e-12)[:, None]
         best = np.zeros(len(self.tiles))
+        # [B, T] dot products from the offsets' matrix products, not from unit offsets
+        # [B, T, 3]; and only the tiles not yet seen after the first block (the answer is
+        # best >= SEEN_SHARE). 1,299 tiles among 1,000 spheres: 101 -> 36 ms, the same tiles.
+        cn_all = np.einsum("tk,tk->t", centre, nrm)                 # c_i . n_i
         for s in range(0, len(j), 256):
             b = j[s:s + 256]
-            w = centre[None, :, :] - centre[b, None, :]                # [B, T]: b -> i
-            d = np.linalg.norm(w, axis=2)
-            om = w / np.maximum(d, 1e-12)[..., None]
-            cos_j = np.where(flat[b, None], np.maximum((nrm[b, None, :] * om).sum(-1), 0.0), 1.0)
-            cos_i = np.where(flat[None, :], np.maximum(-(nrm[None, :, :] * om).sum(-1), 0.0), 1.0)
-            d2 = np.maximum(d, 0.5 * (radius[b, None] + radius[None, :])) ** 2
-            form = self.area[None, :] * cos_j * cos_i / (np.pi * d2)
-            form[np.arange(len(b)), b] = 0.0                           # not itself
-            best = np.maximum(best, form.max(axis=0))
+            t = np.flatnonzero(best < SEEN_SHARE)                      # columns still open
+            if not len(t):
+                break
+            w = centre[None, t, :] - centre[b, None, :]                # [B, T']: b -> i
+            d = np.sqrt(np.einsum("btk,btk->bt", w, w))
+            inv = 1.0 / np.maximum(d, 1e-12)
+            # w . n_b = c_i . n_b - c_b . n_b; -(w . n_i) = c_b . n_i - c_i . n_i
+            cnb = centre[t] @ nrm[b].T                                 # [T', B]: c_i . n_b
+            cbn = centre[b] @ nrm[t].T                                 # [B, T']: c_b . n_i
+            cos_j = np.where(flat[b, None],
+                             np.maximum((cnb.T - cn_all[b, None]) * inv, 0.0), 1.0)
+            cos_i = np.where(flat[None, t],
+                             np.maximum((cbn - cn_all[None, t]) * inv, 0.0), 1.0)
+            d2 = np.maximum(d, 0.5 * (radius[b, None] + radius[None, t])) ** 2
+            form = self.area[None, t] * cos_j * cos_i / (np.pi * d2)
+            form[b[:, None] == t[None, :]] = 0.0                       # not itself
+            best[t] = np.maximum(best[t], form.max(axis=0))
         seen = best >= SEEN_SHARE
         self._seen = (key, seen)
         return seen
