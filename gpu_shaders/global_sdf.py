@@ -96,7 +96,7 @@ class GlobalSDF:
         self.pending = [[] for _ in range(levels)]   # world boxes (lo, hi) to refresh when due
         self.version = getattr(resources, "objects_version", 0)   # object table last seen
         self.last_update = [None] * levels       # frame of the last build/scroll
-        self.log = []                            # (frame, level, 'build' | 'scroll', seconds)
+        self.log = []                            # (frame, level, kind (update's), seconds)
         self._ubo, self._ubo_data = None, None   # GlobalSDFParams of the bound origins
 
     # --- building --------------------------------------------------------------------------
@@ -152,7 +152,8 @@ class GlobalSDF:
                 self.pending[k] += boxes
 
     def update(self, camera_pos, frame: int, objects_changed: bool = False) -> list:
-        """Refresh the levels due this frame; returns [(level, 'build' | 'scroll')] done."""
+        """Refresh the levels due this frame; returns [(level, kind)] done, kind 'build',
+        'scroll', 'boxes' (only the cells near moved objects) or 'scroll+boxes'."""
         if objects_changed:
             self._note_objects_changed()
         done = []

@@ -126,11 +126,13 @@ class SceneResources:
         self.grid_info["seconds"] = time.perf_counter() - t0
 
     CHANGE_LOG = 64        # object-table changes kept for consumers that lag behind
+    CHANGE_ROWS = 256      # rows changed at once beyond which a change counts as everything
 
     def _log_changes(self, old, new):
         """Record which world boxes the new object rows change (objects_version + 1): the old and
         new world AABBs (object_grid.instance_bounds, half a voxel grown) of every row that
-        differs, or None (everything) when the table's size changed. A value of the scene SDF
+        differs, or None (everything) when the table's size changed or more than CHANGE_ROWS
+        rows did (a parent moving thousands of children). A value of the scene SDF
         changes only within those boxes, so the global SDF refreshes only their cells."""
         if not hasattr(self, "objects_version"):
             self.objects_version, self.changes = 0, []
@@ -139,14 +141,15 @@ class SceneResources:
         if old is not None and np.shape(old) == np.shape(new):
             old, new = np.asarray(old, np.float32), np.asarray(new, np.float32)
             rows = np.flatnonzero((old != new).reshape(len(new), -1).any(axis=1))
-            va, _, _, alo, ahi, _ = instance_bounds(old[rows])
-            vb, _, _, blo, bhi, _ = instance_bounds(new[rows])
-            # a row moved a little (dragged): one box around both; moved far: two
-            touch = va & vb & np.all((alo <= bhi) & (blo <= ahi), axis=1)
-            boxes = [(np.minimum(alo[i], blo[i]), np.maximum(ahi[i], bhi[i]))
-                     for i in np.flatnonzero(touch)]
-            boxes += [(alo[i], ahi[i]) for i in np.flatnonzero(va & ~touch)]
-            boxes += [(blo[i], bhi[i]) for i in np.flatnonzero(vb & ~touch)]
+            if len(rows) <= self.CHANGE_ROWS:
+                va, _, _, alo, ahi, _ = instance_bounds(old[rows])
+                vb, _, _, blo, bhi, _ = instance_bounds(new[rows])
+                # a row moved a little (dragged): one box around both; moved far: two
+                touch = va & vb & np.all((alo <= bhi) & (blo <= ahi), axis=1)
+                boxes = [(np.minimum(alo[i], blo[i]), np.maximum(ahi[i], bhi[i]))
+                         for i in np.flatnonzero(touch)]
+                boxes += [(alo[i], ahi[i]) for i in np.flatnonzero(va & ~touch)]
+                boxes += [(blo[i], bhi[i]) for i in np.flatnonzero(vb & ~touch)]
         self.objects_version += 1
         self.changes = (self.changes + [(self.objects_version, boxes)])[-self.CHANGE_LOG:]
 
