@@ -490,6 +490,9 @@ def run_lumen(ctx, overrides=()):
     for prop in settings.bl_rna.properties:       # every engine starts from the defaults
         if prop.identifier != "rna_type" and not prop.is_readonly:
             settings.property_unset(prop.identifier)
+    if ctx.get("lumen_seed"):
+        settings.seed = ctx["lumen_seed"]
+        notes.append(f"seed {ctx['lumen_seed']}")
     for attr, value in overrides:
         if hasattr(settings, attr):
             try:
@@ -752,6 +755,9 @@ def parse_args(argv=None):
     ap.add_argument("--quick", action="store_true",
                     help="smoke run: --size 64 --cycles-samples 64 --scenes cornell")
     ap.add_argument("--verbose", action="store_true", help="Blender's render output to the terminal")
+    ap.add_argument("--lumen-seed", type=int, default=0,
+                    help="our engines' Seed (scene.lumen.engine.seed): rerun with others to see "
+                         "how much of a relMSE change is noise")
     ap.add_argument("--keep-exr", action="store_true",
                     help="keep every engine's <out>/<scene>_<engine>.exr (for bench/ssim_map.py)")
     args = ap.parse_args(argv)
@@ -814,6 +820,7 @@ def main(argv=None):
         common_setup(scene, args.size)
         scene.lumen.bake.cache_dir = str(out / "lumen_cache" / name)
         ctx = dict(scene=scene, out=out, log=log, samples=args.cycles_samples,
+                   lumen_seed=args.lumen_seed,
                    digest=scene_digest(scene), eevee_defaults=dict(
                        use_raytracing=scene.eevee.use_raytracing))
         results = {}
