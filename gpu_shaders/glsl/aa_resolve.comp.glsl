@@ -35,6 +35,7 @@ void main()
   float voxel = gi_object_voxel(max(obj, 0));
   vec3 lifted = gi_lifted(p, n, voxel);
   float room = sdf_scene(lifted, h, obj);      /* the field there, for every neighbour's test */
+  vec4 ga = vec4(0.0);                         /* and its gradient, once a test needs it */
   vec3 sum = vec3(0.0);
   float wsum = 0.0;
   vec3 nearest = vec3(0.0);
@@ -68,7 +69,7 @@ void main()
       if (w <= 0.0) {
         continue;
       }
-      if (!gi_visible_from(lifted, room, bp.xyz, bn, voxel)) {
+      if (!gi_visible_from(lifted, room, bp.xyz, bn, voxel, ga)) {
         continue;
       }
       sum += w * e;

@@ -66,12 +66,13 @@ void main()
    * the same point four times) */
   vec3 pa = gi_lifted(p, n, voxel);
   float da = sdf_scene(pa, h, obj);
+  vec4 ga = vec4(0.0);             /* pa's gradient, for the tests that need it */
   for (int k = 0; k < 4; k++) {
     q[k] = clamp(q[k], ivec2(0), grid - 1);
     info[k] = texelFetch(probe_info, q[k], 0);
     vec3 nk = texelFetch(probe_normal, q[k], 0).xyz;
     valid[k] = info[k].w > 0.0 && dot(nk, n) > PROBE_NORMAL_MIN
-               && gi_visible_from(pa, da, info[k].xyz, nk, voxel) ? 1.0 : 0.0;
+               && gi_visible_from(pa, da, info[k].xyz, nk, voxel, ga) ? 1.0 : 0.0;
   }
   float depth = max(distance(p, cam_pos), 1e-4);
   float ok;

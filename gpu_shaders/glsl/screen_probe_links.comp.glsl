@@ -26,6 +26,7 @@ void main()
     float voxel = gi_object_voxel(max(oo, 0));
     vec3 pa = gi_lifted(info.xyz, n, voxel);     /* the probe's end, sampled once for all 8 */
     float da = sdf_scene(pa, hh, oo);
+    vec4 ga = vec4(0.0);         /* pa's gradient, for the tests that need it */
     for (int dy = -1; dy <= 1; dy++) {
       for (int dx = -1; dx <= 1; dx++) {
         ivec2 q = pr + ivec2(dx, dy);
@@ -34,7 +35,7 @@ void main()
         }
         vec4 qi = texelFetch(probe_info, q, 0);
         if (qi.w > 0.0
-            && gi_visible_from(pa, da, qi.xyz, texelFetch(probe_normal, q, 0).xyz, voxel)) {
+            && gi_visible_from(pa, da, qi.xyz, texelFetch(probe_normal, q, 0).xyz, voxel, ga)) {
           mask |= 1 << ((dy + 1) * 3 + (dx + 1));
         }
       }

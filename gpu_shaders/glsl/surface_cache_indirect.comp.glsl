@@ -46,6 +46,7 @@ void main()
   float h;
   int o;
   float room = sdf_scene(lifted, h, o);
+  vec4 ga = vec4(0.0);            /* lifted's gradient, for the tests that need it */
   for (int k = 0; k < 4; k++) {
     ivec2 d = ivec2(k & 1, k >> 1);
     ivec2 q = clamp(i0 + d, ivec2(0), grid - 1);
@@ -58,9 +59,10 @@ void main()
       lift_voxel = qp.w;
       lifted = gi_lifted(p, n, qp.w);
       room = sdf_scene(lifted, h, o);
+      ga = vec4(0.0);
     }
     if (!gi_visible_between(lifted, room, gi_lifted(qp.xyz, qi.xyz, qp.w),
-                            texelFetch(sc_probe_room, q, 0).x, qp.w)) {
+                            texelFetch(sc_probe_room, q, 0).x, qp.w, ga)) {
       continue;
     }
     float w = (d.x == 1 ? f.x : 1.0 - f.x) * (d.y == 1 ? f.y : 1.0 - f.y) + 1e-3;

@@ -104,6 +104,7 @@ vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, mat4 l2w, float guard_v
     int oo;
     room = sdf_scene(lifted, hh, oo);     /* also gi_visible's field at p's end */
   }
+  vec4 ga = vec4(0.0);                    /* and its gradient, once needed */
   float scale = sdf_object_texel(obj, 7).w;
   ivec2 range = sc_instance_range(obj);
   vec3 sum = vec3(0.0);
@@ -148,7 +149,7 @@ vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, mat4 l2w, float guard_v
         q[pl.x] = uv.x;
         q[pl.y] = uv.y;
         q += SC_AXES[axis] * (t3.x + td);
-        if (!gi_visible_from(lifted, room, (l2w * vec4(q, 1.0)).xyz, nw, guard_voxel)) {
+        if (!gi_visible_from(lifted, room, (l2w * vec4(q, 1.0)).xyz, nw, guard_voxel, ga)) {
           continue;
         }
       }

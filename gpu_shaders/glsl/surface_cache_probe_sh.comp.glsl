@@ -36,6 +36,7 @@ void main()
     vec4 a = texelFetch(sc_probe_pos, probe, 0);
     vec3 lifted = gi_lifted(a.xyz, own.xyz, a.w);
     float room = texelFetch(sc_probe_room, probe, 0).x;   /* the field there (probe_place) */
+    vec4 ga = vec4(0.0);         /* its gradient, for the tests that need it */
     for (int dy = -1; dy <= 1; dy++) {
       for (int dx = -1; dx <= 1; dx++) {
         ivec2 q = probe + ivec2(dx, dy);
@@ -49,7 +50,7 @@ void main()
         if (q != probe) {
           vec4 b = texelFetch(sc_probe_pos, q, 0);
           if (!gi_visible_between(lifted, room, gi_lifted(b.xyz, qi.xyz, a.w),
-                                  texelFetch(sc_probe_room, q, 0).x, a.w)) {
+                                  texelFetch(sc_probe_room, q, 0).x, a.w, ga)) {
             continue;
           }
         }
