@@ -159,6 +159,7 @@ class ScreenProbes:
         self.atlas = self.grid       # probe slots: the grid, + adaptive levels (gather)
         self.zero_rays = None        # the slot table without importance sampling (all own texel)
         self.split_radiance = None   # the split viewport's probe texels, kept across redraws
+        self.split_links = None      # and its probes' links, kept for their placement
 
     def jitter(self, frame: int):
         """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets."""
@@ -296,9 +297,17 @@ class ScreenProbes:
         else:
             tex["history"] = tex["radiance"]
 
-        tex["links"] = compute.texture((aw, ah), 'R32F')
-        LINKS.run((aw, ah), scene=resources, uniform_grid=(gw, gh), probe_info=tex["info"],
-                  probe_normal=tex["normal"], out_image=tex["links"])
+        # which neighbours each probe sees: once per placement (the split holds the probes for
+        # `split` redraws, and anything that moves them resets the split's count)
+        kept = self.split_links
+        if step == 1 or split_frame % split == 0 or kept is None or kept.width != aw \
+                or kept.height != ah:
+            tex["links"] = compute.texture((aw, ah), 'R32F')
+            LINKS.run((aw, ah), scene=resources, uniform_grid=(gw, gh), probe_info=tex["info"],
+                      probe_normal=tex["normal"], out_image=tex["links"])
+            self.split_links = tex["links"] if step > 1 else None
+        else:
+            tex["links"] = kept
 
         tex["filtered"] = compute.texture((aw * r, ah * r))
         FILTER.run((aw * r, ah * r), uniform_grid=(gw, gh), probe_links=tex["links"],
