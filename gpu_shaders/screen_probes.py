@@ -20,14 +20,18 @@ Per frame, one GLSL pass each:
     screen_probe_compose    (importance sampling) the texel atlas from the slots, weighted so
                             each texel's estimate stays unbiased
     screen_probe_links      which of its 3x3 neighbours each probe sees (short SDF rays, once
-                            per probe)
+                            per probe and placement)
+    screen_probe_occlusion  each uniform probe's occlusion map: how far its lifted end sees
+                            along its surface, 16 azimuths (once per placement; integrate's
+                            wall test)
     screen_probe_filter     3x3 probe spatial filter: plane weights, angle-error rejection,
                             hit-distance clamp, the links
     screen_probe_sh         9 SH coefficients per probe of the hemisphere above its surface
                             (exact texel solid angles; the hemisphere's mean projected exactly
                             over the whole sphere: a constant L gives pi L every frame)
-    screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, those a wall
-                            hides left out, SH irradiance; where they fail, the adaptive probes
+    screen_probe_integrate  per pixel: 4 probes by bilinear x plane-distance weights, those off
+                            its plane or a wall hides (their occlusion maps) left out, SH
+                            irradiance; where they fail, the adaptive probes
                             of the nearest 8x8 and 4x4 tiles on the pixel's plane; every
                             pixel adds the emitters nearer its surface than a ray starts
                             (sc_near_emission); the pixels still without probes go to a list
@@ -108,6 +112,9 @@ COMPOSE = compute.Pass("screen_probe_compose",
                        images=("out_image", "probe_history_out"), push=(('INT', 'probe_res'),))
 LINKS = compute.Pass("screen_probe_links", samplers=("probe_info", "probe_normal"),
                      images=(("out_image", 'R32F'),), push=(('IVEC2', 'uniform_grid'),))
+OCCLUSION = compute.Pass("screen_probe_occlusion", samplers=("probe_info", "probe_normal"),
+                         push=(('IVEC2', 'uniform_grid'),))
+OCC_TEXELS = 5             # probe_occlusion_lib.glsl's PROBE_OCC_TEXELS
 FILTER = compute.Pass("screen_probe_filter",
                       samplers=("probe_info", "probe_normal", "probe_radiance", "probe_links"),
                       push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter'),
@@ -115,7 +122,7 @@ FILTER = compute.Pass("screen_probe_filter",
 SH = compute.Pass("screen_probe_sh", samplers=("probe_info", "probe_normal", "probe_filtered"),
                   push=(('INT', 'probe_res'), ('VEC2', 'ray_jitter')))
 INTEGRATE = compute.Pass("screen_probe_integrate",
-                         samplers=GBUF + ("probe_info", "probe_normal", "probe_sh"),
+                         samplers=GBUF + ("probe_info", "probe_normal", "probe_sh", "probe_occ"),
                          images=("out_image", "fb_list", ("fb_counter", 'R32I', {'READ', 'WRITE'})),
                          push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'uniform_rows'),
                                ('IVEC2', 'px_phase'), ('INT', 'px_step')))
@@ -160,6 +167,7 @@ class ScreenProbes:
         self.zero_rays = None        # the slot table without importance sampling (all own texel)
         self.split_radiance = None   # the split viewport's probe texels, kept across redraws
         self.split_links = None      # and its probes' links, kept for their placement
+        self.split_occ = None        # and their occlusion maps
 
     def jitter(self, frame: int):
         """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets."""
@@ -305,9 +313,14 @@ class ScreenProbes:
             tex["links"] = compute.texture((aw, ah), 'R32F')
             LINKS.run((aw, ah), scene=resources, uniform_grid=(gw, gh), probe_info=tex["info"],
                       probe_normal=tex["normal"], out_image=tex["links"])
+            tex["occ"] = compute.texture((aw * OCC_TEXELS, ah))
+            OCCLUSION.run((aw * OCC_TEXELS, ah), scene=resources, uniform_grid=(gw, gh),
+                          probe_info=tex["info"], probe_normal=tex["normal"],
+                          out_image=tex["occ"])
             self.split_links = tex["links"] if step > 1 else None
+            self.split_occ = tex["occ"] if step > 1 else None
         else:
-            tex["links"] = kept
+            tex["links"], tex["occ"] = kept, self.split_occ
 
         tex["filtered"] = compute.texture((aw * r, ah * r))
         FILTER.run((aw * r, ah * r), uniform_grid=(gw, gh), probe_links=tex["links"],
@@ -329,7 +342,8 @@ class ScreenProbes:
         INTEGRATE.run((lw, lh), scene=resources, cache=cache,
                       px_step=step, px_phase=split_phase_pixel(split_frame % split, step),
                       gbuf_position=gpos, gbuf_normal=gnor, probe_info=tex["info"],
-                      probe_normal=tex["normal"], probe_sh=tex["sh"], cam_pos=cam,
+                      probe_normal=tex["normal"], probe_sh=tex["sh"], probe_occ=tex["occ"],
+                      cam_pos=cam,
                       probe_tile=self.tile, uniform_rows=gh if adaptive else 0,
                       out_image=tex["integrated"], fb_list=tex["fb_list"],
                       fb_counter=tex["fb_counter"])

@@ -4,19 +4,21 @@
 #include "gbuffer_lib.glsl"
 #include "sh_lib.glsl"
 #include "probe_interp_lib.glsl"
+#include "probe_occlusion_lib.glsl"
 /* Screen probes, per-pixel integration (lecture: "Final integration with SH" and "Plane distance
  * weighting of Probe Interpolation"): the 4 probes around the pixel (tile centres as the bilinear
  * grid), weighted by probe_corner_weights (bilinear x plane distance), probes that a wall hides
- * from the pixel (sdf_ray_lib.glsl's gi_visible) left out; irradiance
- * E = sum w_i sh9_irradiance(c_i, n). Where no probe lies on the pixel's plane (lighting_valid 0:
- * silhouettes, thin objects) the visible probes are used by their bilinear weights alone, and with
- * none visible the pixel needs rays of its own: it writes (sc_near_emission, w = 0) and appends
+ * from the pixel (their occlusion maps: probe_occ_visible) left out; irradiance
+ * E = sum w_i sh9_irradiance(c_i, n). Where the plane weights fail (lighting_valid 0) the visible
+ * probes are used by their bilinear weights alone, and with none visible the pixel needs rays of
+ * its own: it writes (sc_near_emission, w = 0) and appends
  * (px, voxel) to the list fb_list (slot from the atomic counter fb_counter, cleared each frame);
  * screen_probe_fallback traces those pixels' rays and adds their irradiance. Why a list: traced
  * here, every work group waited on its slowest pixel (with 1,000 small objects most groups held
  * one or two such pixels), while the list packs them into full groups.
- * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, the mesh SDFs and the
- * surface cache (near emission); cam_pos, probe_tile; images fb_list (RGBA32F, at least the
+ * Inputs: gbuf_position, gbuf_normal, probe_info, probe_normal, probe_sh, probe_occ
+ * (screen_probe_occlusion), the mesh SDFs (the pixel's object) and the surface cache (near
+ * emission); cam_pos, probe_tile; images fb_list (RGBA32F, at least the
  * dispatch's pixel count) and fb_counter (R32I 1x1).
  * With adaptive probes (uniform_rows > 0: screen_probe_adaptive's atlas, the uniform block
  * [0, gw) x [0, uniform_rows)) a pixel the uniform probes do not interpolate first takes the
@@ -35,6 +37,38 @@
  * (bench/ssim_map.py: cornell's dark class). Such pixels take probes that face their way, else
  * their own rays. */
 #define PROBE_NORMAL_MIN 0.5
+
+/* Whether uniform probe q (position b, normal nb) may light the pixel whose lifted end is pa
+ * (its object's voxel `voxel`), from the probe's occlusion map (probe_occlusion_lib.glsl): pa
+ * must lie on the probe's lifted plane (within a quarter of its distance, plus the hit shell),
+ * within the map's reach, and no nearer than the free distance of both azimuths either side of
+ * its direction. A wall between the probe and the pixel crosses one of them unless it ends
+ * inside that wedge (a doorway's jamb: a strip of pixels there may take a probe from beyond it),
+ * and a small object standing between them (a sphere on a floor) may be missed, as the
+ * lecture's plane weights alone miss it. Every other probe (off the pixel's plane: a sphere's
+ * pixel and a floor's probe) is refused: such pixels take the adaptive probes or trace their
+ * own rays (screen_probe_fallback). */
+bool probe_occ_visible(ivec2 q, vec3 b, vec3 nb, vec3 pa, float voxel)
+{
+  vec4 meta = texelFetch(probe_occ, ivec2(q.x * PROBE_OCC_TEXELS + PROBE_OCC_TEXELS - 1, q.y), 0);
+  if (meta.w < 0.5) {
+    return false;
+  }
+  vec3 d = pa - gi_lifted(b, nb, meta.x);
+  float r = length(d);
+  if (r > meta.z || abs(dot(d, nb)) > 0.25 * r + GI_HIT_VOXELS * max(voxel, meta.x)) {
+    return false;
+  }
+  vec3 u, v;
+  probe_occ_basis(nb, u, v);
+  float a = atan(dot(d, v), dot(d, u));
+  float k = (a < 0.0 ? a + 6.28318530718 : a) / PROBE_OCC_STEP;
+  int k0 = int(floor(k)) % PROBE_OCC_AZIMUTHS;
+  int k1 = (k0 + 1) % PROBE_OCC_AZIMUTHS;
+  float f0 = texelFetch(probe_occ, ivec2(q.x * PROBE_OCC_TEXELS + k0 / 4, q.y), 0)[k0 % 4];
+  float f1 = texelFetch(probe_occ, ivec2(q.x * PROBE_OCC_TEXELS + k1 / 4, q.y), 0)[k1 % 4];
+  return r <= min(f0, f1);
+}
 
 void main()
 {
@@ -62,17 +96,13 @@ void main()
   float voxel = gi_object_voxel(max(obj, 0));
   /* emitters facing the pixel from under 1.5 voxels: no probe ray reaches them */
   vec3 near = sc_near_emission(p, n, voxel);
-  /* the pixel's lifted end and its field once for the four tests (gi_visible per probe sampled
-   * the same point four times) */
-  vec3 pa = gi_lifted(p, n, voxel);
-  float da = sdf_scene(pa, h, obj);
-  vec4 ga = vec4(0.0);             /* pa's gradient, for the tests that need it */
+  vec3 pa = gi_lifted(p, n, voxel);     /* where the probes' occlusion maps are read */
   for (int k = 0; k < 4; k++) {
     q[k] = clamp(q[k], ivec2(0), grid - 1);
     info[k] = texelFetch(probe_info, q[k], 0);
     vec3 nk = texelFetch(probe_normal, q[k], 0).xyz;
     valid[k] = info[k].w > 0.0 && dot(nk, n) > PROBE_NORMAL_MIN
-               && gi_visible_from(pa, da, info[k].xyz, nk, voxel, ga) ? 1.0 : 0.0;
+               && probe_occ_visible(q[k], info[k].xyz, nk, pa, voxel) ? 1.0 : 0.0;
   }
   float depth = max(distance(p, cam_pos), 1e-4);
   float ok;
