@@ -146,8 +146,8 @@ vec3 sc_sample_local(int obj, vec3 p, vec3 n, float tol, mat4 l2w, float guard_v
     int first = int(w.x >= 0.5) + 2 * int(w.y >= 0.5);
     for (int j = 0; j < 4; j++) {
       int k = j ^ first;         /* the nearest first */
-      if (guard && j == 1 && cw > 0.0) {
-        break;                   /* it passed */
+      if (guard && j > 0 && cw > 0.0) {
+        break;                   /* an earlier one passed */
       }
       ivec2 d = ivec2(k & 1, k >> 1);
       ivec2 ij = clamp(i0 + d, ivec2(0), hi);
