@@ -125,9 +125,11 @@ INTEGRATE = compute.Pass("screen_probe_integrate",
                          samplers=GBUF + ("probe_info", "probe_normal", "probe_sh", "probe_occ"),
                          images=("out_image", "fb_list", ("fb_counter", 'R32I', {'READ', 'WRITE'})),
                          push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'uniform_rows'),
-                               ('IVEC2', 'px_phase'), ('INT', 'px_step')))
+                               ('IVEC2', 'px_phase'), ('INT', 'px_step'), ('INT', 'fb_turn'),
+                               ('INT', 'fb_skip')))
 FALLBACK_GROUP = 64
 FALLBACK_BUDGET = 1.0      # the fallback's rays per frame, in the uniform probes' ray count
+FALLBACK_SKIP_MAX = 16     # screen_probe_fallback.comp.glsl's: a pixel traces at least 1 turn in 16
 VIEWPORT_FALLBACK_BUDGET = 0.5  # the viewport's (gather's fallback_budget): among 1,000 small
                                 # objects 131 of a 397 ms still frame at 1.0 at 128 px; its
                                 # strata then turn over twice the redraws
@@ -168,6 +170,7 @@ class ScreenProbes:
         self.split_radiance = None   # the split viewport's probe texels, kept across redraws
         self.split_links = None      # and its probes' links, kept for their placement
         self.split_occ = None        # and their occlusion maps
+        self.fb_estimate = 0         # the last redraw's fallback pixels, skipped ones counted
 
     def jitter(self, frame: int):
         """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets."""
@@ -339,6 +342,20 @@ class ScreenProbes:
             tex["fb_list"] = compute.texture((lw, lh))
             tex["fb_counter"] = compute.texture((1, 1), 'R32I')
         tex["fb_counter"].clear(format='INT', value=(0,))
+        fb_budget = int((FALLBACK_BUDGET if fallback_budget is None else fallback_budget)
+                        * gw * gh * r * r) // (step * step)
+        fb_turn = int(frame) // split              # a pixel's turns (the split's)
+        # its rounds since the history's reset: from the second, a pixel over the budget may
+        # skip a turn (temporal_split keeps its history); F12 -1
+        fb_round = int(split_frame) // split if split > 1 else -1
+        # the skip, from the last redraw's list (the fallback's own rule), applied in integrate:
+        # a pixel off its turn is not listed, so the fallback's groups hold only pixels that
+        # trace (skipped in the fallback, a group of 64 list slots spanning a few 4x4 blocks
+        # still waited on its one tracing block)
+        fb_skip = 1
+        while (fb_round >= 1 and fb_skip < FALLBACK_SKIP_MAX
+               and self.fb_estimate > fb_budget * fb_skip):
+            fb_skip *= 2
         INTEGRATE.run((lw, lh), scene=resources, cache=cache,
                       px_step=step, px_phase=split_phase_pixel(split_frame % split, step),
                       gbuf_position=gpos, gbuf_normal=gnor, probe_info=tex["info"],
@@ -346,22 +363,18 @@ class ScreenProbes:
                       cam_pos=cam,
                       probe_tile=self.tile, uniform_rows=gh if adaptive else 0,
                       out_image=tex["integrated"], fb_list=tex["fb_list"],
-                      fb_counter=tex["fb_counter"])
+                      fb_counter=tex["fb_counter"], fb_turn=fb_turn, fb_skip=fb_skip)
         # the pixels integrate listed: their own rays, in full work groups, and only theirs
         # (their count read back: llvmpipe runs an invocation of a tracing shader that returns
         # at once nearly as slowly as one that traces, screen_probe_list.comp.glsl)
         # its budget: the uniform probes' rays of this redraw (a list of thousands of pixels
         # among many small objects cost 4x a whole viewport frame at 16 rays each)
         listed = compute.read_counter(tex["fb_counter"])
+        self.fb_estimate = listed * fb_skip       # about the pixels it would have listed
         if not listed:
             return tex["integrated"]
         FALLBACK.run(listed, **tracers, frame=int(frame), t_max=float(t_max),
-                     fb_budget=int((FALLBACK_BUDGET if fallback_budget is None else fallback_budget)
-                                   * gw * gh * r * r) // (step * step),
-                     fb_turn=int(frame) // split,        # a pixel's turns (the split's)
-                     # its rounds since the history's reset: from the second, a pixel over
-                     # the budget may skip a turn (temporal_split keeps its history); F12 -1
-                     fb_round=int(split_frame) // split if split > 1 else -1,
+                     fb_budget=fb_budget, fb_turn=fb_turn, fb_round=fb_round,
                      gbuf_position=gpos, gbuf_normal=gnor, cam_pos=cam,
                      out_image=tex["integrated"], fb_list=tex["fb_list"],
                      fb_counter=tex["fb_counter"],

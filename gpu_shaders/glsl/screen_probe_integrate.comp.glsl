@@ -5,6 +5,7 @@
 #include "sh_lib.glsl"
 #include "probe_interp_lib.glsl"
 #include "probe_occlusion_lib.glsl"
+#include "sampling_lib.glsl"
 /* Screen probes, per-pixel integration (lecture: "Final integration with SH" and "Plane distance
  * weighting of Probe Interpolation"): the 4 probes around the pixel (tile centres as the bilinear
  * grid), weighted by probe_corner_weights (bilinear x plane distance), probes that a wall hides
@@ -154,6 +155,15 @@ void main()
     if (dot(valid, vec4(1.0)) == 0.0) {
       /* No probe this pixel can see (silhouettes, a strip along a thin wall): its own rays, in
        * screen_probe_fallback (the lecture refines with smaller probes; a pixel is the limit). */
+      ivec2 block = px >> 2;
+      if (fb_skip > 1 && (fb_turn + int(pcg_hash(uint(block.x) + 7919u * uint(block.y))
+                                       % uint(fb_skip))) % fb_skip != 0) {
+        /* not this 4x4 block's turn (fb_skip: screen_probe_fallback's skip, from the last
+         * redraw's list): the history stays (w = -2), and the list holds only pixels that
+         * trace, so the fallback's work groups are full of them */
+        imageStore(out_image, px, vec4(near, -2.0));
+        return;
+      }
       imageStore(out_image, px, vec4(near, 0.0));
       int slot = imageAtomicAdd(fb_counter, ivec2(0, 0), 1);
       int lw = imageSize(fb_list).x;

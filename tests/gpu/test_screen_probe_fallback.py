@@ -13,6 +13,9 @@ one cycle, averages exactly the inline pass's 16 rays of that cycle's rotation (
 Over the budget even at 1 ray a pixel (a budget of a quarter of the list), from the viewport's
 second round each pixel traces on exactly one of 4 consecutive turns and writes w = -2 on the
 others; in the first round (fb_round 0) and in F12 (-1) every pixel traces.
+The viewport applies that skip in integrate (fb_skip, from the last redraw's list): with fb_skip
+4, over 4 turns each pixel of the list is listed on exactly one turn, and written w = -2 on the
+others.
 """
 import sys
 from pathlib import Path
@@ -148,13 +151,40 @@ def _wrapped(self, res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels=No
             skipped_ok = bool(np.isin(flags, (0.0, -2.0)).all())
         else:
             every[fb_round] = bool((flags == 0.0).all())     # no turn skipped
+    # the same skip applied in integrate (fb_skip 4, the viewport's later rounds): over 4 turns
+    # each of the listed pixels is listed on exactly one, with w 0, and written w -2 on the
+    # others; no other pixel changes its list membership
+    listed_turns = np.zeros((self.height, self.width), int)
+    pre_flags_ok = True
+    for f in range(4):
+        img = compute.texture((self.width, self.height))
+        lst2 = compute.texture((self.textures["fb_list"].width, self.textures["fb_list"].height))
+        cnt2 = compute.texture((1, 1), 'R32I')
+        cnt2.clear(format='INT', value=(0,))
+        screen_probes.INTEGRATE.run((self.width, self.height), scene=res, cache=cache,
+                                    px_step=1, px_phase=(0, 0), gbuf_position=g["position"],
+                                    gbuf_normal=g["normal"], probe_info=self.textures["info"],
+                                    probe_normal=self.textures["normal"],
+                                    probe_sh=self.textures["sh"], probe_occ=self.textures["occ"],
+                                    cam_pos=compute.vec(cam_pos), probe_tile=self.tile,
+                                    uniform_rows=0, out_image=img, fb_list=lst2, fb_counter=cnt2,
+                                    fb_turn=f, fb_skip=4)
+        counted2 = compute.texture((1, 1))
+        COUNT.run_groups(1, fb_counter=cnt2, out_image=counted2)
+        n2 = int(compute.read(counted2).reshape(-1)[0])
+        l2 = compute.read(lst2).reshape(-1, 4)[:n2]
+        listed_turns[l2[:, 1].astype(int), l2[:, 0].astype(int)] += 1
+        w2 = compute.read(img)[ys, xs, 3]
+        pre_flags_ok = pre_flags_ok and bool(np.isin(w2, (0.0, -2.0)).all())
+    pre_once = bool((listed_turns[ys, xs] == 1).all()) and int(listed_turns.sum()) == count
     ROWS.append(dict(count=count, unique=len(set(zip(xs.tolist(), ys.tolist()))),
                      w_zero=bool((E[ys, xs, 3] == 0).all()),
                      max_diff=float(np.abs(E[ys, xs, :3] - R[ys, xs, :3]).max()) if count else -1.0,
                      max_E=float(E[ys, xs, :3].max()) if count else 0.0,
                      budget_diff=budget_diff,
                      skip_once=bool((traced == 1).all()) if count else False,
-                     skip_flags=skipped_ok, first_round_all=every[0], f12_all=every[-1]))
+                     skip_flags=skipped_ok, first_round_all=every[0], f12_all=every[-1],
+                     pre_once=pre_once, pre_flags=pre_flags_ok))
     return out
 
 screen_probes.ScreenProbes.gather = _wrapped
@@ -210,3 +240,4 @@ def test_fallback_list_traces_exactly_the_inline_rays(tmp_path):
             assert 0.0 <= r["budget_diff"] < 1e-5        # a cycle of 4 frames: the 16 strata
             assert r["skip_flags"] and r["skip_once"]    # over budget: 1 turn in 4 a pixel
             assert r["first_round_all"] and r["f12_all"]  # never in the first round nor F12
+            assert r["pre_once"] and r["pre_flags"]      # integrate's skip: listed 1 turn in 4
