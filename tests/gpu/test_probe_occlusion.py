@@ -21,7 +21,6 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 from blender_runner import run_python  # noqa: E402
 
 SNIPPET = f"""
-import traceback
 sys.path.insert(0, {str(HERE.parent / 'core')!r})
 from shapes import box, matrix
 from lumen_gi.lumen_addon.bake import BakeSettings, ObjectInput, bake_scene
@@ -32,7 +31,6 @@ import gpu
 inputs = [ObjectInput("Floor", *box((5.0, 5.0, 0.1)), matrix((0.0, 0.0, -0.1))),
           ObjectInput("Wall", *box((0.01, 3.0, 1.0)), matrix((0.6, 0.0, 1.0)))]
 bake = bake_scene(inputs, BakeSettings(voxel_density=10.0))
-ERRORS, OUT = [], {{}}
 
 def job():
     res = SceneResources.from_bake(bake)
@@ -51,26 +49,7 @@ def job():
                                 probe_normal=tex_normal, out_image=out)
     np.save("occ.npy", compute.read(out))
 
-class OccTestEngine(bpy.types.RenderEngine):
-    bl_idname = "LUMEN_OCC_TEST"
-    bl_label = "Occlusion map test"
-    bl_use_gpu_context = True
-    def render(self, depsgraph):
-        try:
-            job()
-        except Exception:
-            ERRORS.append(traceback.format_exc())
-        self.end_result(self.begin_result(0, 0, 4, 4))
-
-bpy.utils.register_class(OccTestEngine)
-scene = bpy.context.scene
-cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-scene.collection.objects.link(cam)
-scene.camera = cam
-scene.render.engine = "LUMEN_OCC_TEST"
-scene.render.resolution_x = scene.render.resolution_y = 4
-bpy.ops.render.render()
-assert not ERRORS, ERRORS[0]
+run_in_gpu_context(job)
 emit(done=True)
 """
 
