@@ -37,7 +37,8 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 
 PASSES = ("screen_probe_trace", "screen_probe_integrate", "screen_probe_fallback", "direct_light",
           "surface_cache_probe_trace", "surface_cache_direct", "surface_cache_indirect",
-          "screen_probe_links", "screen_probe_filter")
+          "screen_probe_links", "screen_probe_filter", "screen_probe_lumen_trace", "hzb_depth",
+          "hzb_reduce")
 
 
 def ab_arguments(ap, rounds: int):

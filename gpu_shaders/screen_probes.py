@@ -73,9 +73,10 @@ RAYS = compute.Pass("screen_probe_rays",
                           ('INT', 'frame'), ('INT', 'uniform_rows')))
 # the probe rays (screen_probe_trace_lib.glsl), one invocation per ray of a live probe (LIST:
 # the atlas's live slots, their count read back): without the screen trace one pass, TRACE; with
-# it SCREEN_TRACE (the screen walk; its hits listed, the other rays listed), SCREEN_HIT (the
-# hits' light; those it cannot give listed with the others) then TRACE_LIST (those on the SDFs),
-# each over its list's count: full work groups)
+# it and hits read from the surface cache (screen_trace.HITS "CACHE") one pass, LUMEN_TRACE (the
+# walk, then the SDFs from where it stops vouching); with the screen colour's hits SCREEN_TRACE
+# (the walk; its hits listed, the other rays listed), SCREEN_HIT (the hits' light) then
+# TRACE_LIST (the others on the SDFs), each over its list's count: full work groups)
 LIST = compute.Pass("screen_probe_list", samplers=("probe_info",),
                     images=(("probe_list", 'RGBA32F'), ("probe_counter", 'R32I', {'READ', 'WRITE'}),
                             ("out_image", 'RGBA32F')),
@@ -99,10 +100,11 @@ SCREEN_TRACE = compute.Pass("screen_probe_screen_trace",
 SCREEN_HIT = compute.Pass("screen_probe_screen_hit",
                           samplers=TRACE_SAMPLERS + screen_trace.SAMPLERS,
                           images=TRACE_IMAGES + (("hit_list", 'RGBA32F', {'READ'}),
-                                                 ("hit_counter", 'R32I', {'READ'}),
-                                                 ("ray_list", 'RGBA32F', {'WRITE'}),
-                                                 ("ray_counter", 'R32I', {'READ', 'WRITE'})),
+                                                 ("hit_counter", 'R32I', {'READ'})),
                           push=SCREEN_PUSH, group=(RAY_GROUP, 1, 1))
+LUMEN_TRACE = compute.Pass("screen_probe_lumen_trace",
+                           samplers=TRACE_SAMPLERS + screen_trace.SAMPLERS, images=TRACE_IMAGES,
+                           push=SCREEN_PUSH, group=(RAY_GROUP, 1, 1))
 TRACE_LIST = compute.Pass("screen_probe_trace_list", samplers=TRACE_SAMPLERS,
                           images=TRACE_IMAGES + (("ray_list", 'RGBA32F', {'READ'}),
                                                  ("ray_counter", 'R32I', {'READ'})),
@@ -276,6 +278,8 @@ class ScreenProbes:
         screen_on = screen is not None and screen.inputs()["screen_steps"] > 0
         if live and not screen_on:
             TRACE.run(live * rays_per, **rays)
+        elif live and not screen.needs_colour:
+            LUMEN_TRACE.run(live * rays_per, **rays, **screen.inputs())
         elif live:
             if "ray_list" not in tex or tex["ray_list"].width * tex["ray_list"].height \
                     < live * rays_per:
@@ -289,7 +293,8 @@ class ScreenProbes:
             SCREEN_TRACE.run(live * rays_per, **rays, **screen.inputs(), **lists)
             hits = compute.read_counter(tex["hit_counter"])
             if hits:
-                SCREEN_HIT.run(hits, **rays, **screen.inputs(), **lists)
+                SCREEN_HIT.run(hits, **rays, **screen.inputs(), hit_list=tex["hit_list"],
+                               hit_counter=tex["hit_counter"])
             listed = compute.read_counter(tex["ray_counter"])
             if listed:
                 TRACE_LIST.run(listed, **rays, ray_list=tex["ray_list"],

@@ -2,9 +2,8 @@
 #include "lumen_trace_lib.glsl"
 /* Screen probes, the light of the rays the screen walk hit something with
  * (screen_probe_screen_trace lists them in hit_list, hit_counter entries; lumen_trace_lib.glsl:
- * lumen_screen_hit), one invocation per listed hit, dispatched over the count read back. A hit
- * whose light the screen cannot give (nothing the SDFs hold there) is appended to ray_list with
- * the walk's t_free, for screen_probe_trace_list.
+ * lumen_screen_hit: HITS "COLOUR", the screen colour), one invocation per listed hit, dispatched
+ * over the count read back.
  * Inputs: screen_probe_trace_lib's, screen_trace.SAMPLERS and PUSH; images hit_list,
  * hit_counter (read), ray_list, ray_counter.
  */
@@ -25,12 +24,5 @@ void main()
   if (!probe_ray(tx, o, dir, tmax, level)) {
     return;
   }
-  vec3 L;
-  if (lumen_screen_hit(o, dir, entry.z, hit_px, L)) {
-    probe_ray_store(tx, o, level, tmax, L, entry.z);
-    return;
-  }
-  int next = imageAtomicAdd(ray_counter, ivec2(0, 0), 1);
-  ivec2 lsize = imageSize(ray_list);
-  imageStore(ray_list, ivec2(next % lsize.x, next / lsize.x), vec4(vec2(tx), entry.w, 0.0));
+  probe_ray_store(tx, o, level, tmax, lumen_screen_hit(o, dir, entry.z, hit_px), entry.z);
 }

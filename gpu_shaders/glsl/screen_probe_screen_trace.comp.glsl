@@ -1,6 +1,7 @@
 #include "screen_probe_trace_lib.glsl"
 #include "lumen_trace_lib.glsl"
-/* Screen probes, Lumen's first trace, its walk (screen_probe_trace_lib.glsl,
+/* Screen probes, Lumen's first trace with the screen colour's hits (screen_trace.HITS "COLOUR";
+ * "CACHE" runs screen_probe_lumen_trace), its walk (screen_probe_trace_lib.glsl,
  * lumen_trace_lib.glsl: lumen_screen_walk): every ray walks the screen (HZB). A ray the walk
  * finds a hit for is appended to hit_list (two texels an entry: atlas texel xy, hit distance,
  * t_free; hit pixel xy) for screen_probe_screen_hit, which reads its light; every other one to

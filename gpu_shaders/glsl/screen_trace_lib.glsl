@@ -16,6 +16,10 @@
  *   pixel spans a long stretch of its surface.)
  * At most max_steps cells are visited (the lecture: 50). The world ray is clipped to the near and
  * far planes, its screen line to the image.
+ * free_only (Lumen's first trace with its hits placed by the mesh SDFs, lumen_trace_lib.glsl:
+ * lumen_screen_free): only t_free is wanted, so the walk ends at the first pixel that does not
+ * vouch for the ray (SCREEN_BEHIND, hit_px that pixel), instead of walking on to a hit it would
+ * not use.
  * stop_behind (Lumen's first trace, which has a world trace to go on with): a ray that passes
  * behind a pixel's surface without hitting it ends there (SCREEN_BEHIND) instead of walking on
  * behind it: what lies behind is unknown to the screen (the walk found surfaces beyond a thin
@@ -40,8 +44,8 @@ vec3 screen_window(vec4 h, vec2 size)
 }
 
 float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, int max_steps,
-                   float thickness, float free_margin, bool stop_behind, out float t_free,
-                   out ivec2 hit_px)
+                   float thickness, float free_margin, bool stop_behind, bool free_only,
+                   out float t_free, out ivec2 hit_px)
 {
   t_free = 0.0;
   hit_px = ivec2(-1);
@@ -165,6 +169,10 @@ float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, 
         }
       }
       free_so_far = free_so_far && front;
+      if (free_only && !free_so_far) {
+        hit_px = cell;                    /* the surface the ray came near */
+        return SCREEN_BEHIND;             /* t_free is final: the rest of the walk is not needed */
+      }
     }
     if (free_so_far) {
       t_free = tb;

@@ -41,7 +41,7 @@ void main()
   vec3 o = p + n * (1e-4 * distance(p, cam_pos) + 1e-4);
   float t_free;
   ivec2 hit_px;
-  float result = screen_trace(view_proj, cam_pos, o, dir, t_max, max_steps, thickness, 0.0, false, t_free,
-                              hit_px);
+  float result = screen_trace(view_proj, cam_pos, o, dir, t_max, max_steps, thickness, 0.0, false,
+                              false, t_free, hit_px);
   imageStore(out_image, gid, vec4(dir, result));
 }

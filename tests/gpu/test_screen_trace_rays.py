@@ -10,6 +10,8 @@ thin strip (a card) at z = 5 covers the columns with NDC x in [-0.3, 0]; both fa
   Lumen's trace (stop_behind true) ends SCREEN_BEHIND there, with t_free (where the SDFs go on)
   at most where the ray went behind the strip (t <= 0.71 + a pixel).
 - A ray that meets the far wall in the open hits it at t = 4 sqrt 2 either way.
+- With free_only (Lumen's walk that only wants t_free, and ends where the screen stops vouching)
+  both rays give the same results, t_free bit for bit.
 - screen_cone, the colour a hit reads: the far wall noisy (its colour A plus seeded noise), the
   strip another colour B. A hit beside the strip with a wide cone averages only far-wall taps:
   its mean over hits is A within the noise's mean (no B: edge-aware), its spread over hits at
@@ -63,6 +65,9 @@ for j in range(4, 28):
         for tan in (0.5, 0.0):
             cone.append((len(rays), j, i, tan))
             rays.append((tuple(p - np.array([0.0, 0.0, 1.0])), (0.0, 0.0, 1.0), 3.0, tan, 1.0))
+# the two Lumen rays again with free_only (the walk that ends where the screen stops vouching)
+FREE = len(rays)
+rays += [rays[2][:4] + (2.0,), rays[3][:4] + (2.0,)]
 R = np.zeros((1, len(rays), 4), np.float32)
 D = np.zeros((1, len(rays), 4), np.float32)
 for k, (o, d, tm, tan, stop) in enumerate(rays):
@@ -80,11 +85,12 @@ void main()
   vec4 r = texelFetch(rays, ivec2(k, 0), 0);
   vec4 d = texelFetch(dirs, ivec2(k, 0), 0);
   bool stop = d.w >= 5.0;
-  float cone_tan = stop ? d.w - 10.0 : d.w;
+  bool free_only = d.w >= 15.0;
+  float cone_tan = d.w - (free_only ? 20.0 : (stop ? 10.0 : 0.0));
   float t_free;
   ivec2 hit_px;
-  float t = screen_trace(view_proj, cam.xyz, r.xyz, d.xyz, r.w, 50, cam.w, 0.0, stop, t_free,
-                           hit_px);
+  float t = screen_trace(view_proj, cam.xyz, r.xyz, d.xyz, r.w, 50, cam.w, 0.0, stop, free_only,
+                         t_free, hit_px);
   vec3 c = vec3(0.0);
   if (t >= 0.0) {
     c = screen_cone(colour, view_proj, cam.xyz, cone_tan, r.xyz + d.xyz * t, t, hit_px);
@@ -130,7 +136,7 @@ def job():
     OUT["colour"] = compute.read(cout)[0]
 
 run_in_gpu_context(job)
-np.savez("rays.npz", col=col, cone=np.array(cone), **OUT)
+np.savez("rays.npz", col=col, cone=np.array(cone), free=FREE, **OUT)
 emit(ok=True)
 """
 
@@ -148,6 +154,11 @@ def test_screen_trace_rays(tmp_path):
     assert 0.0 < tr[2, 1] <= 0.71 + 0.2                        # t_free: before the strip's shadow
     for k in (1, 3):                                           # in the open: the same hit
         assert abs(tr[k, 0] - far) < 0.1
+    # free_only ends the walk where it stops vouching: the same results, t_free bit for bit
+    free = int(d["free"])
+    print("free only:", tr[free], tr[free + 1])
+    np.testing.assert_array_equal(tr[free], tr[2])
+    np.testing.assert_array_equal(tr[free + 1], tr[3])
     wide = np.array([int(k) for k, j, i, tan in cone if tan > 0])
     narrow = np.array([(k, j, i) for k, j, i, tan in cone if tan == 0]).astype(int)
     assert (tr[wide, 0] > 0).all() and (tr[narrow[:, 0], 0] > 0).all()
