@@ -45,30 +45,21 @@ float vl_tile_scene(vec3 pw, out float voxel_world, out int nearest)
   return best;
 }
 
-/* gi_trace_mesh (sdf_ray_lib.glsl: the thin-wall rule, a start inside a shell hits only where
- * the field falls) through the loaded tile's objects only. */
+/* gi_trace_mesh (sdf_ray_lib.glsl: the thin-wall rule, a start inside a shell hits at once)
+ * through the loaded tile's objects only. */
 bool vl_trace_tile(vec3 o, vec3 dir, float t0, float t1, out float t, out int obj)
 {
   t = t0;
   obj = -1;
-  bool leaving = true;
-  float last = 1e30;
   for (int i = 0; i < GI_MESH_STEPS; i++) {
     float h;
     int nearest;
     float d = vl_tile_scene(o + t * dir, h, nearest);
     if (d <= GI_HIT_VOXELS * h) {
-      if (!leaving || d < last - 0.05 * h) {
-        obj = nearest;
-        return true;
-      }
-      last = d;
-      t += 0.25 * h;
+      obj = nearest;
+      return true;
     }
-    else {
-      leaving = false;
-      t += max(d, 0.1 * h);
-    }
+    t += max(d, 0.1 * h);
     if (t > t1) {
       break;
     }

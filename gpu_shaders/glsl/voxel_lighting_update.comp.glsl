@@ -42,14 +42,12 @@ float vl_scene(vec3 pw, out float voxel_world, out int nearest)
 }
 
 /* First surface along unit a from s within len (gi_trace_mesh's rule: hit within half a voxel,
- * a start inside a surface's shell hits only where the field falls). */
+ * a start inside a surface's shell too). */
 bool vl_face_ray(vec3 s, vec3 a, float len, out vec3 q, out int obj)
 {
   q = s;
   obj = -1;
   float t = 0.0;
-  bool leaving = true;
-  float last = 1e30;
   for (int i = 0; i < VL_STEPS; i++) {
     float h;
     int nearest;
@@ -61,18 +59,11 @@ bool vl_face_ray(vec3 s, vec3 a, float len, out vec3 q, out int obj)
       return false;
     }
     if (d <= GI_HIT_VOXELS * h) {
-      if (!leaving || d < last - 0.05 * h) {
-        q = s + t * a;
-        obj = nearest;
-        return true;
-      }
-      last = d;
-      t += 0.25 * h;
+      q = s + t * a;
+      obj = nearest;
+      return true;
     }
-    else {
-      leaving = false;
-      t += max(d, 0.1 * h);
-    }
+    t += max(d, 0.1 * h);
     if (t > len) {
       break;
     }
