@@ -16,8 +16,9 @@ import numpy as np
 from . import compute
 
 MIP = (('INT', 'level'), ('IVEC2', 'base'))
+# 8 x 8 work groups: hzb_depth.comp.glsl's HZB_TILE (a group shares its tile's depths)
 DEPTH = compute.Pass("hzb_depth", samplers=("gbuf_position",), images=(("hzb", 'R32F'),),
-                     push=(('MAT4', 'view_proj'),))
+                     push=(('MAT4', 'view_proj'),), group=(8, 8, 1))
 REDUCE = compute.Pass("hzb_reduce", images=(("hzb", 'R32F', {'READ', 'WRITE'}),), push=MIP)
 COLOUR_MIP = compute.Pass("colour_mip", samplers=("source", "gbuf_position"),
                           images=(("colour", 'RGBA32F', {'READ', 'WRITE'}),), push=MIP)

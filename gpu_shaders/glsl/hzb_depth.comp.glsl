@@ -20,20 +20,34 @@ float window_depth(ivec2 px)
   return clamp(h.z / h.w * 0.5 + 0.5, 0.0, 1.0);
 }
 
+/* One work group (8 x 8 pixels) loads the window depths of its pixels and their one-pixel
+ * border (10 x 10) once into shared memory: each depth is a position fetch and a matrix product,
+ * and the 3x3 MIN needs every one nine times (measured on llvmpipe at 640 x 360: 11.3 ms with
+ * nine per pixel, bench/glsl_ab.py). */
+#define HZB_TILE 8                /* hzb.py's DEPTH pass: 8 x 8 work groups */
+#define HZB_SIDE (HZB_TILE + 2)
+shared float s_depth[HZB_SIDE * HZB_SIDE];
+
 void main()
 {
-  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
   ivec2 size = textureSize(gbuf_position, 0);
+  ivec2 corner = ivec2(gl_WorkGroupID.xy) * HZB_TILE - 1;
+  for (int k = int(gl_LocalInvocationIndex); k < HZB_SIDE * HZB_SIDE;
+       k += HZB_TILE * HZB_TILE) {
+    ivec2 q = corner + ivec2(k % HZB_SIDE, k / HZB_SIDE);
+    bool inside = all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, size));
+    s_depth[k] = inside ? window_depth(q) : 1.0;
+  }
+  barrier();
+  ivec2 px = ivec2(gl_GlobalInvocationID.xy);
   if (px.x >= size.x || px.y >= size.y) {
     return;
   }
+  ivec2 l = ivec2(gl_LocalInvocationID.xy) + 1;
   float z = 1.0;
   for (int j = -1; j <= 1; j++) {
     for (int i = -1; i <= 1; i++) {
-      ivec2 q = px + ivec2(i, j);
-      if (q.x >= 0 && q.y >= 0 && q.x < size.x && q.y < size.y) {
-        z = min(z, window_depth(q));
-      }
+      z = min(z, s_depth[(l.y + j) * HZB_SIDE + l.x + i]);
     }
   }
   imageStore(hzb, px, vec4(z, 0.0, 0.0, 0.0));
