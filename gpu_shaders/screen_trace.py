@@ -1,6 +1,7 @@
 """Lumen's first trace (lecture 21, "Speed of Different Tracing Methods"): every screen-probe ray
-is first walked on the screen, through the HZB (at most 50 cells), and only what that does not
-resolve goes on to the mesh SDFs (to 1.8 m), the global SDF and the sky:
+is first walked on the screen, through the HZB (at most 50 cells), and the mesh SDFs (to 1.8 m),
+the global SDF and the sky go on from where the screen stops vouching for it (with the screen
+colour's hits, only for the rays the screen does not resolve):
 
     hzb.depth_pyramid   this frame's HZB (MIN of window depths), once per frame
     screen_trace_lib    per ray: where it hits what the camera sees, and how far it is known to
@@ -12,22 +13,31 @@ resolve goes on to the mesh SDFs (to 1.8 m), the global SDF and the sky:
                         A ray that passes behind what a pixel shows without hitting it ends
                         there (SCREEN_BEHIND: what is behind is unknown; walking on found
                         surfaces past a thin wall's edge, `thin` leaked 1.98%)
-    the hit's light     HITS "CACHE" (default): the surface cache read at the hit pixel's
-                        surface, lifted half a voxel towards the ray (where an SDF hit lies),
-                        no SDF steps (lumen_trace_lib.glsl: lumen_screen). "COLOUR" (the
-                        lecture's): the screen colour, this frame's direct light and the last
-                        gather's indirect irradiance composited per pixel, averaged over the
-                        ray's cone on the hit's surface (screen_cone); a gather with no history
-                        has none and traces on the SDFs alone. Measured (bench/quality.py, 128
-                        px, 512 spp): COLOUR's relMSE is above the trace without the screen on
+    the hit's light     HITS "CACHE" (default): the walk only vouches for the empty part (it
+                        ends at the first pixel that does not: free_only) and the SDF trace goes
+                        on from t_free, a voxel back (unseen surfaces: a porch roof's underside),
+                        in the same pass (screen_probe_lumen_trace): the mesh SDFs' last steps
+                        find the hit and read the surface cache there, as without the screen.
+                        Before (until the thirteenth session), a hit read the cache at the hit
+                        pixel's plane lifted half a voxel, with no SDF steps: relMSE over the
+                        SDF-only trace glow +2.0%, window +1.7%, textured +1.8% (the SDF's
+                        half-voxel shell finds surfaces the screen's ray passes by; see the
+                        README). "COLOUR" (the lecture's): the screen colour, this frame's direct
+                        light and the last gather's indirect irradiance composited per pixel,
+                        averaged over the ray's cone on the hit's surface (screen_cone); three
+                        passes over compacted lists (screen_probe_screen_trace); a gather with no
+                        history has none and traces on the SDFs alone. Measured (bench/quality.py,
+                        128 px, 512 spp): COLOUR's relMSE is above the trace without the screen on
                         every scene (cornell 0.0104 / 0.0074, glow 0.0334 / 0.0209): the probes'
                         indirect light it carries is 5.8% below the cache's and noisier
-    otherwise           the SDF trace starts at t_free, not at the ray's origin: the saving on
-                        rays that leave the screen or pass behind something
+    otherwise           (the ray leaves the screen, or passes behind what a pixel shows) the SDF
+                        trace starts at t_free, not at the ray's origin
 
 Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step evaluates every
-object near the point; the screen finds the empty part of most of a room's rays. Why it is no
-less right: what it skips is what the depth buffer shows empty (the nearest surfaces, a voxel's
+object near the point; the screen finds the empty part of most of a room's rays. On llvmpipe the
+gain is bounded: the SDF steps it can skip were 25-35% of the probe trace, the walk costs 15-30%
+of it (bench/f12_ab.py, the README's issue 12 notes), the hit's surface-cache read the rest.
+Why it is no less right: what it skips is what the depth buffer shows empty (the nearest surfaces, a voxel's
 margin and the neighbours' rims kept); what the screen does not show (behind, off screen) is
 still traced.
 Objects hidden from the camera (visible_camera off: bench/quality.py's `thin` has its roof so)
@@ -37,7 +47,8 @@ object-table rows in `screen_hidden`, SceneState.hidden_rows) up to where the sc
 ends, and where it comes within a voxel of one the SDF trace takes over from there (before this
 guard `thin` leaked 37%).
 Debug view TRACE_METHOD (gi_trace_method.comp.glsl): per pixel, the share of its rays served by
-the screen (red), the mesh SDFs (green), the global SDF (blue), none (the sky: black).
+the screen (red: with CACHE hits, a hit on the surface of the pixel where the walk ended), the
+mesh SDFs (green), the global SDF (blue), none (the sky: black).
 Needs a GPU context.
 """
 from __future__ import annotations

@@ -5,9 +5,10 @@
 #include "screen_probe_ray_lib.glsl"
 /* Screen probes: one ray per octahedral texel of every probe (probe_res^2 per probe, the whole
  * sphere in world-space directions so that neighbours' texels match), shared by the passes that
- * trace them: screen_probe_trace (the SDFs alone), and with the screen trace on,
- * screen_probe_screen_trace (the screen first) then screen_probe_trace_list (the SDFs for the
- * rays the screen did not resolve, compacted).
+ * trace them: screen_probe_trace (the SDFs alone), and with the screen trace on
+ * screen_probe_lumen_trace (the screen, then the SDFs from where it stops vouching), or with the
+ * screen colour's hits screen_probe_screen_trace (the screen first), screen_probe_screen_hit and
+ * screen_probe_trace_list (the SDFs for the rays the screen did not resolve, compacted).
  * Directions are jittered inside their texel by ray_jitter (the same for every probe of a frame);
  * with importance sampling a slot may trace another texel or a quarter of one
  * (screen_probe_ray_lib.glsl: probe_rays; screen_probe_compose weights the slots).
