@@ -37,9 +37,9 @@ Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step e
 object near the point; the screen finds the empty part of most of a room's rays. On llvmpipe the
 gain is bounded: the SDF steps it can skip were 25-35% of the probe trace, the walk costs 15-30%
 of it (bench/f12_ab.py, the README's issue 12 notes), the hit's surface-cache read the rest.
-Why it is no less right: what it skips is what the depth buffer shows empty (the nearest surfaces, a voxel's
-margin and the neighbours' rims kept); what the screen does not show (behind, off screen) is
-still traced.
+Why it is no less right: what it skips is what the depth buffer shows empty (the nearest
+surfaces, a voxel's margin and the neighbours' rims kept, a voxel back for what the camera does
+not see); what the screen does not show (behind, off screen) is still traced.
 Objects hidden from the camera (visible_camera off: bench/quality.py's `thin` has its roof so)
 are in the SDFs but not in the depth buffer, which therefore vouches for the space they fill:
 before a screen result is used, the ray is sphere-traced against those objects alone (their
