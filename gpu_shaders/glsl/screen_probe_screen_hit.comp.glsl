@@ -5,7 +5,7 @@
  * lumen_screen_hit: HITS "COLOUR", the screen colour), one invocation per listed hit, dispatched
  * over the count read back.
  * Inputs: screen_probe_trace_lib's, screen_trace.SAMPLERS and PUSH; images hit_list,
- * hit_counter (read), ray_list, ray_counter.
+ * hit_counter (read).
  */
 void main()
 {
