@@ -65,6 +65,7 @@ class MeshSize:
     resolution_scale: float = 1.0
     world_scale: float = 1.0         # largest axis scale of the object (voxels, card texels)
     instances: int = 1
+    emits: bool = False              # a material emits: cards even under Min Card Size
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,7 @@ def estimate(meshes, settings) -> Estimate:
         except Exception:                    # the bake reports a bad request with its reason
             continue
         samples[i] = float(np.prod(np.asarray(res, np.float64) + 1))
-        if (ext * max(m.world_scale, 0.0)).max() < settings.min_card_size:
+        if not m.emits and (ext * max(m.world_scale, 0.0)).max() < settings.min_card_size:
             continue                         # no cards (bake.too_small_for_cards)
         side = ext * settings.texel_density * max(m.world_scale, 0.0)
         texels += 2.0 * (side[0] * side[1] + side[1] * side[2] + side[2] * side[0])

@@ -18,7 +18,7 @@ import bpy
 from ..lumen_addon.bake import BakeCancelled, BakeSettings, SceneBakeError, bake_scene
 from ..lumen_addon.cache import SCENE_TOKEN, CacheError, folder_name, read_cache, write_cache
 from ..lumen_addon.estimate import MeshSize, estimate
-from .extract import extract_scene, mesh_instances
+from .extract import extract_scene, material_emits, mesh_instances
 from .properties import DEFAULT_CACHE_DIR, INT_MAX
 
 # Last successful bake per scene name: reused by the next bake (unchanged meshes are not baked
@@ -43,9 +43,11 @@ def settings_from(scene) -> BakeSettings:
                         min_card_size=float(s.min_card_size))
 
 
-def mesh_sizes(depsgraph) -> list:
+def mesh_sizes(depsgraph, min_card_size: float = 0.0) -> list:
     """MeshSize of every unique evaluated mesh the bake would extract, from counts and bounds
-    alone (no vertex is read): cheap enough for the N-panel."""
+    alone (no vertex is read): cheap enough for the N-panel. Whether a mesh emits (an emitter
+    keeps its cards under Min Card Size) is read only for instances smaller than
+    `min_card_size` (0, the default setting: never)."""
     import numpy as np
 
     sizes = {}
@@ -53,23 +55,31 @@ def mesh_sizes(depsgraph) -> list:
         obj = inst.object
         mesh = obj.data
         key = mesh.as_pointer() if mesh is not None else obj.as_pointer()
-        scale = float(np.linalg.norm(np.array(inst.matrix_world)[:3, :3], axis=0).max())
+        m = np.array(inst.matrix_world)[:3, :3]
+        scale = float(np.linalg.norm(m, axis=0).max())
+        corners = np.array([c[:] for c in obj.bound_box], np.float64)
+        extent = corners.max(0) - corners.min(0)
+        small = min((extent * scale).max(), (np.abs(m) @ extent).max()) < min_card_size
+        emits = bool(min_card_size > 0 and small
+                     and any(material_emits(slot.material) for slot in obj.material_slots))
         old = sizes.get(key)
         if old is not None:
             sizes[key] = MeshSize(old.triangles, old.extent, old.resolution_scale,
-                                  max(old.world_scale, scale), old.instances + 1)
+                                  max(old.world_scale, scale), old.instances + 1,
+                                  old.emits or emits)
             continue
-        corners = np.array([c[:] for c in obj.bound_box], np.float64)
         props = getattr(obj.original, "lumen", None)
         sizes[key] = MeshSize(len(mesh.loop_triangles) if mesh is not None else 0,
-                              tuple(corners.max(0) - corners.min(0)),
-                              float(props.resolution_scale) if props is not None else 1.0, scale)
+                              tuple(extent),
+                              float(props.resolution_scale) if props is not None else 1.0, scale,
+                              emits=emits)
     return list(sizes.values())
 
 
 def bake_estimate(scene, depsgraph):
     """lumen_addon.estimate.Estimate of baking the scene from scratch with its settings."""
-    return estimate(mesh_sizes(depsgraph), settings_from(scene))
+    settings = settings_from(scene)
+    return estimate(mesh_sizes(depsgraph, settings.min_card_size), settings)
 
 
 _ESTIMATES = {}     # scene name -> (time, settings, Estimate): the N-panel redraws often

@@ -114,6 +114,27 @@ def _rgb(socket):
     return tuple(float(c) for c in socket.default_value[:3])
 
 
+def material_emits(mat) -> bool:
+    """Whether `mat` emits as the bake reads it (its Principled BSDF's Emission Strength, and an
+    Emission Color above black or an Image Texture linked to it), without reading any image:
+    cheap enough for the N-panel's estimate (bake.too_small_for_cards keeps an emitter's cards)."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None:
+        return False
+    out = tree.get_output_node('EEVEE') or tree.get_output_node('CYCLES')
+    src = _follow(out.inputs["Surface"]) if out is not None else None
+    if src is None or src[0].type != 'BSDF_PRINCIPLED':
+        return False
+    node = src[0]
+    if float(node.inputs["Emission Strength"].default_value) == 0.0:
+        return False
+    socket = node.inputs["Emission Color"]
+    linked = _follow(socket)
+    if linked is not None and linked[0].type == 'TEX_IMAGE' and linked[0].image is not None:
+        return True
+    return max(_rgb(socket)) > 0.0
+
+
 class _Texture:
     """An Image Texture feeding a socket: its image, output (Color/Alpha) and UV map name."""
 

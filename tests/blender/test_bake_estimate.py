@@ -50,3 +50,28 @@ def test_estimate_counts_what_the_bake_extracts_and_warns_when_large(blender):
     # a million triangles: about a gigabyte, so the bake asks first
     assert big["triangles"] - small["triangles"] == 917504 and big["large"], big
     assert 0.8 < big["gb"] < 2.5 and big["text"].startswith("~1."), big
+
+
+def test_estimate_keeps_an_emitters_cards_under_min_card_size(blender):
+    """Min Card Size leaves small meshes without cards, but not emitters (bake.too_small_for_cards):
+    the estimate counts an emitting 5 cm cube's card texels and not a plain one's."""
+    res = blender("""
+        from lumen_gi.operators import bake_op
+
+        scene = empty_scene(voxel_density=10.0, cache_dir="est")
+        texels = {}
+        for name, mat in (("Plain", principled("Plain")),
+                          ("Ember", principled("Ember", emission=(1.0, 0.5, 0.2), strength=3.0))):
+            bpy.ops.mesh.primitive_cube_add(size=0.05, location=(len(texels), 0.0, 0.0))
+            bpy.context.object.name = name
+            bpy.context.object.data.materials.append(mat)
+            for size in (0.0, 0.1):
+                scene.lumen.bake.min_card_size = size
+                est = bake_op.bake_estimate(scene, bpy.context.evaluated_depsgraph_get())
+                texels[f"{name}_{size}"] = est.texels
+        emit(**texels)
+    """, timeout=300)
+    t = res.result
+    assert t["Plain_0.0"] > 0 and t["Plain_0.1"] == 0, t        # the plain cube: no cards
+    # with the emitter added, its cards stay under Min Card Size (the plain one's do not)
+    assert t["Ember_0.1"] > 0 and t["Ember_0.0"] - t["Ember_0.1"] == t["Plain_0.0"], t

@@ -343,3 +343,7 @@ def test_objects_under_min_card_size_get_no_cards(tmp_path):
     small = [MeshSize(triangles=len(pf), extent=(0.08, 0.08, 0.08), world_scale=1.0)]
     assert estimate(small, BakeSettings(min_card_size=0.1)).texels == 0
     assert estimate(small, BakeSettings()).texels > 0
+    # an emitter keeps its cards under Min Card Size, in the estimate as in the bake
+    ember = [MeshSize(triangles=len(pf), extent=(0.08, 0.08, 0.08), world_scale=1.0, emits=True)]
+    assert estimate(ember, BakeSettings(min_card_size=0.1)).texels \
+        == estimate(ember, BakeSettings()).texels > 0
