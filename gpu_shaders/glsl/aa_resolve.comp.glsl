@@ -29,12 +29,8 @@ void main()
     return;
   }
   float tol = 2.0 * (footprint.x * distance(p, cam_pos) + footprint.y);
-  float h;
-  int obj;
-  sdf_scene(p, h, obj);
-  float voxel = gi_object_voxel(max(obj, 0));
-  vec3 lifted = gi_lifted(p, n, voxel);
-  float room = sdf_scene(lifted, h, obj);      /* the field there, for every neighbour's test */
+  float voxel, room;                           /* room: the field at p's lifted end */
+  vec3 lifted = gi_lifted_end(p, n, voxel, room);
   vec4 ga = vec4(0.0);                         /* and its gradient, once a test needs it */
   vec3 sum = vec3(0.0);
   float wsum = 0.0;

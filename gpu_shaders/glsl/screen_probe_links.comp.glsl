@@ -20,12 +20,8 @@ void main()
   int mask = 0;
   if (info.w > 0.0 && all(lessThan(pr, grid))) {
     vec3 n = texelFetch(probe_normal, pr, 0).xyz;
-    float hh;
-    int oo;
-    sdf_scene(info.xyz, hh, oo);
-    float voxel = gi_object_voxel(max(oo, 0));
-    vec3 pa = gi_lifted(info.xyz, n, voxel);     /* the probe's end, sampled once for all 8 */
-    float da = sdf_scene(pa, hh, oo);
+    float voxel, da;
+    vec3 pa = gi_lifted_end(info.xyz, n, voxel, da);   /* the probe's end, once for all 8 */
     vec4 ga = vec4(0.0);         /* pa's gradient, for the tests that need it */
     for (int dy = -1; dy <= 1; dy++) {
       for (int dx = -1; dx <= 1; dx++) {

@@ -28,12 +28,8 @@ void main()
   vec4 result = vec4(0.0);
   if (info.w > 0.0 && all(lessThan(pr, uniform_grid))) {
     vec3 n = texelFetch(probe_normal, pr, 0).xyz;
-    float h;
-    int o;
-    sdf_scene(info.xyz, h, o);
-    float voxel = gi_object_voxel(max(o, 0));
-    vec3 pb = gi_lifted(info.xyz, n, voxel);
-    float db = sdf_scene(pb, h, o);
+    float voxel, db;
+    vec3 pb = gi_lifted_end(info.xyz, n, voxel, db);
     float reach = 0.0;
     for (int k = 0; k < 9; k++) {
       ivec2 q = pr + ivec2(k % 3 - 1, k / 3 - 1);

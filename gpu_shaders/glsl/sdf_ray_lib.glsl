@@ -93,6 +93,20 @@ vec3 gi_lifted(vec3 a, vec3 na, float voxel)
   return a + na * (GI_LIFT_VOXELS * voxel);
 }
 
+/* Surface point p's lifted end (gi_lifted with the voxel of the object nearest p) and the scene
+ * field there: what a pass that tests p against several neighbours (AA resolve, probe links,
+ * probe occlusion maps) computes once before its tests. */
+vec3 gi_lifted_end(vec3 p, vec3 n, out float voxel, out float field)
+{
+  float h;
+  int obj;
+  sdf_scene(p, h, obj);
+  voxel = gi_object_voxel(max(obj, 0));
+  vec3 end = gi_lifted(p, n, voxel);
+  field = sdf_scene(end, h, obj);
+  return end;
+}
+
 /* gi_visible_from with both lifted ends and their fields given (a pass that keeps the field at
  * a probe's lifted end, as the surface cache's probes do, samples it once, not once per test).
  * ga_memo: pa's gradient, for the tests that need it (vec4(0) before the first; the caller keeps
