@@ -50,23 +50,37 @@ def mesh_sizes(depsgraph, min_card_size: float = 0.0) -> list:
     `min_card_size` (0, the default setting: never)."""
     import numpy as np
 
-    sizes = {}
+    sizes, emitting = {}, {}      # emitting: material pointer -> material_emits (read once)
+
+    def emits_any(obj):
+        for slot in obj.material_slots:
+            mat = slot.material
+            if mat is not None:
+                key = mat.as_pointer()
+                if key not in emitting:
+                    emitting[key] = material_emits(mat)
+                if emitting[key]:
+                    return True
+        return False
+
     for inst, _name in mesh_instances(depsgraph):
         obj = inst.object
         mesh = obj.data
         key = mesh.as_pointer() if mesh is not None else obj.as_pointer()
         m = np.array(inst.matrix_world)[:3, :3]
         scale = float(np.linalg.norm(m, axis=0).max())
-        corners = np.array([c[:] for c in obj.bound_box], np.float64)
-        extent = corners.max(0) - corners.min(0)
-        small = min((extent * scale).max(), (np.abs(m) @ extent).max()) < min_card_size
-        emits = bool(min_card_size > 0 and small
-                     and any(material_emits(slot.material) for slot in obj.material_slots))
         old = sizes.get(key)
+        if old is not None and (old.emits or not min_card_size > 0):
+            sizes[key] = MeshSize(old.triangles, old.extent, old.resolution_scale,
+                                  max(old.world_scale, scale), old.instances + 1, old.emits)
+            continue
+        extent = (np.asarray(old.extent) if old is not None else
+                  np.ptp(np.array([c[:] for c in obj.bound_box], np.float64), axis=0))
+        small = min((extent * scale).max(), (np.abs(m) @ extent).max()) < min_card_size
+        emits = bool(min_card_size > 0 and small and emits_any(obj))
         if old is not None:
             sizes[key] = MeshSize(old.triangles, old.extent, old.resolution_scale,
-                                  max(old.world_scale, scale), old.instances + 1,
-                                  old.emits or emits)
+                                  max(old.world_scale, scale), old.instances + 1, emits)
             continue
         props = getattr(obj.original, "lumen", None)
         sizes[key] = MeshSize(len(mesh.loop_triangles) if mesh is not None else 0,
