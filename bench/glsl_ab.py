@@ -160,6 +160,9 @@ def main():
                 last = [clock()]
 
                 def on_redraw(i, rows=rows, timings=timings, last=last, clock=clock):
+                    if "error" in engine.LAST_RENDER:    # a version that fails is not timed
+                        raise SystemExit(f"version {'AB'[version]} ({folder}): "
+                                         f"{engine.LAST_RENDER.get('traceback') or engine.LAST_RENDER['error']}")
                     row = dict(timings)
                     now = clock()
                     row["(frame)"] = (now - last[0] if args.cpu

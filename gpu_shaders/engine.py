@@ -329,6 +329,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                                        min(float(clip_end), 100.0), width, height, changes, final,
                                        view_proj=view_proj, direct=out["textures"]["direct"])
         else:
+            state.screen_trace = None    # Lumen's: its HZB freed, TRACE_METHOD has none to show
             gi_out = gi_methods.indirect_light(method, state, gbuf, objects, out["textures"],
                                                gi_cfg, view_key, view_proj, inv_vp, cam_pos, sky,
                                                min(float(clip_end), 100.0), width, height,
@@ -346,7 +347,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        gi_sc_tiles=(gi_out["sc_tiles"], gi_out["sc_tiles_total"]),
                        gi_settings=gi_cfg.__dict__.copy(),
                        gi_probe_tile=getattr(state.probes, "tile", None),
-                       gi_probe_res=getattr(state.probes, "res", None))
+                       gi_probe_res=getattr(state.probes, "res", None),
+                       gi_screen_hzb_reused=getattr(state.screen_trace, "hzb_reused", None))
         if not final and not gi_out["converged"]:
             # the refining redraw's time so far (G-buffer, direct light, GI, composite): what a
             # redraw of the anti-aliasing that follows may take. GI alone shrank once a tile's
@@ -397,7 +399,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         notes=[f"{name}: {message}" for name, message in warnings] + sky_notes + method_notes + [
             f"{name}: its transform cannot be inverted (a scale of 0?): it casts and bounces no "
             f"light" for name in state.left_out], triangles=gbuf["triangles"],
-        gbuffer_draws=gbuf["draws"], texture_uploads=gbuf["texture_uploads"],
+        gbuffer_draws=gbuf["draws"], gbuffer_reused=gbuf.get("reused", False),
+        texture_uploads=gbuf["texture_uploads"],
         gbuffer_batches_built=gbuf["batches_built"],
         instance_table_uploaded=gbuf["instance_table_uploaded"],
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,

@@ -187,7 +187,8 @@ def indirect_light(state, gbuf: dict, gi: GISettings, view_key, cam_pos, sky, t_
         from .screen_trace import ScreenTrace
         screen = ScreenTrace(gbuf, view_proj, cam_pos, width, height, gi.screen_steps,
                              gi.screen_thickness, hidden=state.hidden_rows(),
-                             rays=probes.res ** 2, hit=gi.screen_hit)
+                             rays=probes.res ** 2, hit=gi.screen_hit,
+                             previous=getattr(state, "screen_trace", None))
     state.screen_trace = screen
     if final:
         schedule = list(gi.render_schedule())

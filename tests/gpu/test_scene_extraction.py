@@ -60,6 +60,7 @@ def step(i):
     frames[LABELS[i]] = dict(
         read=R["meshes_read"], built=R["gbuffer_batches_built"],
         table=R["instance_table_uploaded"], draws=R["gbuffer_draws"], stale=R["stale"],
+        reused=R["gbuffer_reused"], frame_reused=R["reused_frame"],
         pos={{k: at(R["position"], *p) for k, p in PROBES.items()}},
         alb={{k: at(R["albedo"], *p) for k, p in PROBES.items()}})
     label = LABELS[i]
@@ -129,10 +130,18 @@ def test_viewport_frames_follow_the_depsgraph(tmp_path):
     deleted = f["deleted"]
     assert deleted["read"] == 0 and deleted["table"]
     assert close(deleted["alb"]["box_moved"], grey) and close(deleted["pos"]["box_moved"][2], 0.0)
-    # a still frame reads no mesh, builds no batch, uploads no instance table
+    # a still frame reads no mesh, builds no batch, uploads no instance table; it is the last
+    # frame again (converged: no pass run) or draws no G-buffer (the same view of the same
+    # instances: tests/gpu/test_screen_trace.py's still viewport)
     still = f["still"]
     assert still["read"] == 0 and still["built"] == 0 and not still["table"]
     assert still["alb"] == deleted["alb"] and still["pos"] == deleted["pos"]
+    assert still["frame_reused"] or (still["reused"] and still["draws"] == 0), still
+    # every change above drew the G-buffer again (a material colour: the same instances, the
+    # same view, new batches)
+    for label in list(f)[:-1]:
+        assert not f[label]["frame_reused"] and not f[label]["reused"] \
+            and f[label]["draws"] > 0, (label, f[label])
 
 
 INSTANCES = f"""

@@ -189,3 +189,49 @@ def test_screen_trace(tmp_path):
     print("roof: inside indirect on/off:", on[inside].mean(), off[inside].mean())
     assert off[inside].mean() < 0.05                       # closed: no light gets in
     assert on[inside].mean() <= off[inside].mean() + 0.02  # nor through the hidden roof
+
+
+VIEWPORT = """
+import viewport_harness
+from lumen_gi.gpu_shaders import engine
+
+scene = empty_scene(voxel_density=10.0, cache_dir="still")
+closed_room(principled("Wall", (0.5, 0.5, 0.5), emission=(1.0, 1.0, 1.0), strength=0.5))
+box = cube("Box", 0.4, (0.3, 0.2, -0.8))
+box.data.materials.append(principled("Box", (0.8, 0.2, 0.2)))
+aimed_camera((-1.2, -0.9, -0.3), (1.0, 0.6, 0.1))
+scene.render.engine = "LUMEN_GI"
+scene.render.resolution_x = scene.render.resolution_y = 32
+scene.render.resolution_percentage = 100
+scene.render.preview_pixel_size = "1"
+scene.lumen.engine.viewport_quality = "LOW"
+scene.lumen.engine.screen_trace = True
+res, err = bake()
+assert err is None, err
+
+def state(i):
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    if i == 1:
+        box.location.x -= 0.3              # reaches redraw 2
+    return dict(gbuffer=R["gbuffer_reused"], draws=R["gbuffer_draws"],
+                hzb=R["gi_screen_hzb_reused"], changes=R["changes"])
+
+out = viewport_harness.run(scene, engine.LumenGIRenderEngine, 32, 32, 4, state)
+emit(frames=out["after"])
+"""
+
+
+def test_still_viewport_keeps_its_gbuffer_and_hzb(tmp_path):
+    """A still viewport's redraws draw no G-buffer and build no HZB: the last redraw's are the
+    same view of the same instances (mesh_batches.MeshBatches.draw, ScreenTrace's `previous`).
+    A moved object draws both again."""
+    run = run_python(VIEWPORT, tmp_path, timeout=600)
+    assert run.returncode == 0, run.explain()
+    f = run.result["frames"]
+    print(f)
+    assert not f[0]["gbuffer"] and f[0]["draws"] > 0 and f[0]["hzb"] is False
+    assert f[1]["gbuffer"] and f[1]["draws"] == 0 and f[1]["hzb"] is True
+    assert "objects" in f[2]["changes"], f[2]
+    assert not f[2]["gbuffer"] and f[2]["draws"] > 0 and f[2]["hzb"] is False
+    assert f[3]["gbuffer"] and f[3]["hzb"] is True
