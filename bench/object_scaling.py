@@ -167,7 +167,7 @@ def measure(n: int, args, tmp: Path) -> dict:
                     passes={k: statistics.fmean(r.get(k, 0.0) for r in still) * 1000
                             for k in {k for r in still for k in r}})
         if args.move:
-            view["move"] = move_redraws(scene, args, n)
+            view["move"], view["move_split"] = move_redraws(scene, args, n)
         if n > args.f12_max:
             return dict(n=n, bake=bake_seconds, view=view, f12=None,
                         eevee=eevee_times(scene, args.repeat) if args.eevee else None,
@@ -243,17 +243,31 @@ def move_redraws(scene, args, n: int) -> list:
     from lumen_gi.gpu_shaders import engine
 
     name = f"Obj{n // 2}"
+    first = {}
+    timings = defaultdict(float)      # --passes: the first redraw's dispatches by shader
 
     def on_redraw(i):
+        R = engine.LAST_RENDER
         if i == MOVE_WARM - 1:
             bpy.data.objects[name].location.x += 0.4
+        elif i == MOVE_WARM and "error" not in R:     # the first redraw after the move
+            first.update(split(R), **{"gi " + k: v * 1000
+                                      for k, v in (R.get("gi_timings") or {}).items()
+                                      if k != "total" and isinstance(v, float)})
+            top = sorted(timings.items(), key=lambda kv: -kv[1])[:8]
+            first.update({"pass " + k: v * 1000 for k, v in top})
+        timings.clear()
 
-    out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
-                               redraws=MOVE_WARM + args.move, on_redraw=on_redraw)
+    undo = pass_profile.timed_dispatches(timings) if args.passes else (lambda: None)
+    try:
+        out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
+                                   redraws=MOVE_WARM + args.move, on_redraw=on_redraw)
+    finally:
+        undo()
     if "error" in engine.LAST_RENDER:
         raise RuntimeError(engine.LAST_RENDER.get("traceback", engine.LAST_RENDER["error"]))
     bpy.data.objects[name].location.x -= 0.4
-    return [s * 1000 for s in out["seconds"][MOVE_WARM:]]
+    return [s * 1000 for s in out["seconds"][MOVE_WARM:]], first
 
 
 MOVE_WARM = 8
@@ -411,6 +425,7 @@ def main():
                       ", ".join(f"{x:.0f}" for x in m) +
                       f" (sum {sum(m):.0f}, max {max(m):.0f}; still mean {v['mean']:.0f})",
                       flush=True)
+                print(f"    its first redraw's split ms: {fmt(v['move_split'])}", flush=True)
             if f is not None:
                 print(f"  F12 (1 GI iteration): median {f['median']:.1f} ms; split ms: "
                       f"{fmt(f['split'])}, meshes read {f['meshes_read']}", flush=True)

@@ -147,6 +147,7 @@ class VoxelLighting:
         self.origins = [None] * LEVELS        # that clipmap's origin at each level's last update
         self.last_update = [None] * LEVELS
         self.log = []                         # (frame, level, seconds)
+        self.retrace_frame = None             # the frame of the last level re-traced
 
     def update(self, resources, gsdf, cache, frame: int, everything: bool = False,
                aligned_only: bool = False, geometry: bool = False) -> list:
@@ -158,7 +159,14 @@ class VoxelLighting:
         as at mesh hits): the levels due this frame (level k every 2^k frames, unless already
         done this frame), or all of them with `everything`.
         geometry: the objects may have changed since the last update (every level's rays are
-        traced again; otherwise a level whose clipmap stayed reuses its hits)."""
+        traced again; otherwise a level whose clipmap stayed reuses its hits).
+        Without `everything`, one level a frame re-traces for the objects (the finest due
+        first): another level due that frame whose clipmap stayed relights at its old hits and
+        re-traces on a later turn. Why: on a frame when all four are due, the redraw after one
+        sphere moved among 1,000 spent 217 of its 527 ms re-tracing them (bench/object_scaling.py
+        --move); while an object is dragged, the coarse levels, whose voxels are metres across,
+        keep its light from a few frames back. A clipmap that moved re-traces at once (its
+        voxels are other voxels)."""
         if gsdf.n != self.n:
             raise ValueError("voxel lighting and global SDF differ in N")
         if gsdf is not self.gsdf:
@@ -177,20 +185,29 @@ class VoxelLighting:
             if not due:
                 continue
             t0 = time.perf_counter()
-            self._dispatch(k, resources, gsdf, cache)
+            stale = self.traced[k] != self._trace_key(k, gsdf)
+            later = (stale and not moved and not everything and self.hits[k] is not None
+                     and self.retrace_frame == int(frame))
+            self._dispatch(k, resources, gsdf, cache, light_only=later)
+            if stale and not later:
+                self.retrace_frame = int(frame)
             self.origins[k], self.last_update[k] = origin, int(frame)
             self.log.append((int(frame), k, time.perf_counter() - t0))
             done.append(k)
         del self.log[:-64]
         return done
 
-    def _dispatch(self, level: int, resources, gsdf, cache):
+    def _trace_key(self, level: int, gsdf):
+        """What a level's list and hits were made for: the level's global-SDF build (its list
+        reads that field) and the objects (its rays)."""
+        return (gsdf.origins[level], gsdf.last_update[level], self.epoch)
+
+    def _dispatch(self, level: int, resources, gsdf, cache, light_only: bool = False):
         tn = self.n // TILE
         v = gsdf.voxels[level]
         self.list = self.lists[level]
-        # the level's global-SDF build (its list reads that field) and the objects (its rays)
-        key = (gsdf.origins[level], gsdf.last_update[level], self.epoch)
-        if self.traced[level] == key:         # the same list and hits: new light only
+        key = self._trace_key(level, gsdf)
+        if self.traced[level] == key or light_only:    # the kept list and hits: new light only
             UPDATE.run((LIST_WIDTH, self.capacity // LIST_WIDTH), scene=resources, cache=cache,
                        gsdf=gsdf, vl_tiles=self.tiles, vl_list=self.list, vl_level=level,
                        vl_trace=0, out_image=self.texture, vl_hits=self.hits[level])

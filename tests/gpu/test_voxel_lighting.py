@@ -185,6 +185,23 @@ def job():
     OUT["relit_equal"] = bool(np.array_equal(relit, traced))
     OUT["relit_changed"] = bool(not np.array_equal(relit, np.load("faces.npy")))
 
+    # the objects changed (the viewport's soft refresh): one level re-traces a frame, the finest
+    # due first, the others at their old hits until their own later turn
+    levels = []
+    vl_module.TILES_PASS.run = lambda *a, **k: (levels.append(k["vl_level"]),
+                                                run_tiles(*a, **k))[1]
+    try:
+        OUT["geometry_due"] = vl.update(res, g, sc, 8, geometry=True)
+        OUT["geometry_first"] = list(levels)
+        for f in range(9, 17):
+            vl.update(res, g, sc, f)
+        OUT["geometry_later"] = levels[len(OUT["geometry_first"]):]
+        vl.update(res, g, sc, 17, geometry=True, everything=True)
+        OUT["geometry_everything"] = levels[-4:]
+    finally:
+        vl_module.TILES_PASS.run = run_tiles
+    OUT["geometry_equal"] = bool(np.array_equal(vl.read(), traced))
+
 run_job(job)
 emit(**OUT)
 """
@@ -199,6 +216,11 @@ def test_voxel_faces_next_to_an_emitting_wall(tmp_path):
     # faces a fresh trace gives
     assert out["relit_tiles_passes"] == 0 and out["fresh_tiles_passes"] == 4
     assert out["relit_equal"] and out["relit_changed"]
+    # changed objects: all four levels due on frame 8 relight, level 0 alone re-traces; levels
+    # 1, 2, 3 on frames 10, 12, 16; `everything` (F12, a hard reset) re-traces all at once
+    assert out["geometry_due"] == [0, 1, 2, 3] and out["geometry_first"] == [0], out
+    assert out["geometry_later"] == [1, 2, 3], out
+    assert sorted(out["geometry_everything"]) == [0, 1, 2, 3] and out["geometry_equal"], out
     assert out["stats"]["voxel_lighting"] == 24 * N * N * N * 8           # RGBA16F, 4 levels x 6
     faces = np.load(tmp_path / "faces.npy")                 # [level, face, z, y, x, 4]
     final = np.load(tmp_path / "final.npy")
