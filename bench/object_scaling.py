@@ -318,7 +318,7 @@ def gbuffer_only(counts, size: int, repeat: int) -> list:
             gbuffer.read_texture(g["textures"]["position"], size, size)
             old.append(time.perf_counter() - t)
             t = time.perf_counter()
-            _, _, keys, meshes, mats, visible = ext.update(depsgraph)
+            _, _, keys, meshes, mats, visible, _ = ext.update(depsgraph)
             t1 = time.perf_counter()
             batches.update(keys, meshes, mats, visible)
             t2 = time.perf_counter()

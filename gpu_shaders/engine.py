@@ -252,8 +252,9 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         objects, warnings = None, []
         matrices = mesh_matrices(depsgraph)
     else:
-        objects, warnings, keys, meshes, mats, visible = ext.update(depsgraph)
-        state.set_camera_hidden(objects, visible)    # the screen trace's blind spots
+        objects, warnings, keys, meshes, mats, visible, holdout = ext.update(depsgraph)
+        # the screen trace's blind spots: what the depth buffer does not hold as a surface
+        state.set_camera_hidden(objects, visible & ~holdout)
         matrices = ext.matrices        # the same dict object until the next walk (sync: no loop)
         t_stale = time.perf_counter()
         if ext.changed or state.stale.bake is not bake or state.stale.pending():
@@ -300,7 +301,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
     if state.mesh_batches is None:
         state.mesh_batches = mesh_batches.MeshBatches()
-    state.mesh_batches.update(keys, meshes, mats, visible)
+    state.mesh_batches.update(keys, meshes, mats, visible, holdout)
     gbuf = state.mesh_batches.draw(view_proj, width, height)
     t3 = time.perf_counter()
     sky_cones = direct_light.SKY_CONES if gi_methods.direct_has_sky(method, gi_cfg.enabled) else 0

@@ -46,6 +46,7 @@ def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
         iface.smooth('VEC2', "v_uv")
         iface.flat('VEC3', "v_albedo")
         iface.flat('VEC3', "v_emit")
+        iface.flat('FLOAT', "v_holdout")
         info = gpu.types.GPUShaderCreateInfo()
         info.push_constant('MAT4', "view_proj")
         if instanced:

@@ -45,13 +45,16 @@ def drawable(matrices: np.ndarray, visible: np.ndarray) -> np.ndarray:
     return ok
 
 
-def table_rows(matrices: np.ndarray) -> np.ndarray:
-    """float32 [n, 6, 4]: each matrix's rows 0..2, then its normal matrix's rows (w = 0)."""
+def table_rows(matrices: np.ndarray, holdout=None) -> np.ndarray:
+    """float32 [n, 6, 4]: each matrix's rows 0..2, then its normal matrix's rows (w = 0; texel
+    3's w = 1 for a holdout, gbuffer_instanced.glsl)."""
     m = np.asarray(matrices, np.float64).reshape(-1, 4, 4)
     out = np.zeros((len(m), TEXELS, 4), np.float32)
     out[:, :3] = m[:, :3]
     if len(m):
         out[:, 3:, :3] = np.linalg.inv(m[:, :3, :3]).transpose(0, 2, 1)
+    if holdout is not None:
+        out[:, 3, 3] = np.asarray(holdout, bool)
     return out
 
 
@@ -85,14 +88,16 @@ class MeshBatches:
             out["gbuffer_instances"] = max(len(self.rows), 1) * TEXELS * 16
         return out
 
-    def update(self, keys: list, meshes: dict, matrices: np.ndarray, visible) -> dict:
+    def update(self, keys: list, meshes: dict, matrices: np.ndarray, visible,
+               holdout=None) -> dict:
         """Sync with this frame's instances: `keys[i]` the mesh key of instance i, `meshes`
-        {key: MeshData}, `matrices` float64 [n, 4, 4], `visible` bool [n] (camera-visible).
+        {key: MeshData}, `matrices` float64 [n, 4, 4], `visible` bool [n] (camera-visible),
+        `holdout` bool [n] or None (drawn as holdouts: gbuffer.glsl).
         Builds batches for new or re-extracted meshes, frees those no instance shows, and
         re-uploads the instance table when it changed. Returns counts (built, table_uploaded).
         The very same input objects as the last update (ExtractionCache's still frame: no walk)
         change nothing: no loop over the instances, no table rebuilt to compare."""
-        source = (keys, meshes, matrices, visible)
+        source = (keys, meshes, matrices, visible, holdout)
         if self.source is not None and all(a is b for a, b in zip(source, self.source)):
             self.last = dict(self.last, built=0, table_uploaded=False)
             return self.last
@@ -118,7 +123,8 @@ class MeshBatches:
         gone = [k for k in self.entries if k not in drawn]
         for key in gone:
             del self.entries[key]
-        rows = table_rows(mats[order])
+        rows = table_rows(mats[order], None if holdout is None
+                          else np.asarray(holdout, bool).reshape(n)[order])
         uploaded = False
         if self.rows is None or rows.shape != self.rows.shape or not np.array_equal(rows,
                                                                                     self.rows):

@@ -53,6 +53,10 @@ class ObjectInput:
     # Seen by camera rays (Blender's Object > Visibility > Camera): the preview's G-buffer skips
     # it, its SDF and cards still block and bounce light. Not part of any bake hash.
     camera_visible: bool = True
+    # A holdout for camera rays (Object > Visibility > Holdout, or a holdout collection in the
+    # view layer): transparent (alpha 0) where it is nearest, it hides what is behind it and
+    # still casts and bounces light. Not part of any bake hash.
+    holdout: bool = False
 
 
 NO_CARDS = "0"                           # Instance.cards of an object too small for cards

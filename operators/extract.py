@@ -466,6 +466,34 @@ def mesh_instances(depsgraph, view_layer=None):
             yield inst, source.name
 
 
+class Holdouts:
+    """Whether an instance is a holdout for camera rays (Object > Visibility > Holdout or a
+    holdout collection: Object.holdout_get covers both; an instance also takes its instancer's),
+    asked once per object and instancer in a walk (a particle system's thousands of instances
+    share one answer)."""
+
+    def __init__(self, depsgraph, view_layer=None):
+        self.view_layer = view_layer or depsgraph.view_layer
+        self.known = {}
+
+    def _of(self, ob) -> bool:
+        key = ob.as_pointer()
+        hit = self.known.get(key)
+        if hit is None:
+            try:
+                hit = bool(ob.holdout_get(view_layer=self.view_layer))
+            except (TypeError, RuntimeError, ReferenceError):    # not in this view layer
+                hit = bool(getattr(ob, "is_holdout", False))
+            self.known[key] = hit
+        return hit
+
+    def __call__(self, inst) -> bool:
+        if self._of(inst.object.original):
+            return True
+        return bool(inst.is_instance and inst.parent is not None
+                    and self._of(inst.parent.original))
+
+
 def instance_matrices(depsgraph, view_layer=None) -> dict:
     """{name: world 4x4} of every visible mesh instance (extract_scene's names), without reading
     any mesh: the trace debug views place the bake with it."""
@@ -527,6 +555,7 @@ def extract_scene(depsgraph, view_layer=None):
     cache = {}          # (evaluated mesh pointer, material pointers) -> MeshData
     geometry = {}       # evaluated mesh pointer -> shared geometry arrays
     out = []
+    holdout = Holdouts(depsgraph, view_layer)
     for inst, name in mesh_instances(depsgraph, view_layer):
         obj = inst.object
         source = obj.original
@@ -546,7 +575,8 @@ def extract_scene(depsgraph, view_layer=None):
             resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
             normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
             materials=data.materials,
-            camera_visible=bool(getattr(source, "visible_camera", True))))
+            camera_visible=bool(getattr(source, "visible_camera", True)),
+            holdout=holdout(inst)))
     if getattr(depsgraph, "mode", "VIEWPORT") != 'RENDER':
         for name in hidden_renderable(view_layer or depsgraph.view_layer):
             ex.warn(name, "hidden in the viewport, so not baked; F12 renders it without its "
@@ -653,7 +683,8 @@ class ExtractionCache:
 
     def update(self, depsgraph, view_layer=None):
         """(ObjectInputs, warnings, keys, MeshData by key, matrices float64 [n, 4, 4], camera
-        visibility bool [n]) of every visible mesh instance, as extract_scene's."""
+        visibility bool [n], holdout bool [n]) of every visible mesh instance, as
+        extract_scene's."""
         if not self.dirty and self.last is not None:
             self.walked, self.changed, self.reads = False, False, 0
             return self.last
@@ -662,6 +693,7 @@ class ExtractionCache:
         geometry = {}
         used, keys, objects, matrices, visible = {}, [], [], [], []
         reads = 0
+        holdout = Holdouts(depsgraph, view_layer)
         for inst, name in mesh_instances(depsgraph, view_layer):
             obj = inst.object
             key = mesh_key(inst)
@@ -694,7 +726,7 @@ class ExtractionCache:
                 two_sided=bool(props.two_sided) if props is not None else False,
                 resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
                 normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
-                materials=data.materials, camera_visible=cam))
+                materials=data.materials, camera_visible=cam, holdout=holdout(inst)))
         names = [o.name for o in objects]
         self.changed = bool(reads) or names != self.names
         self.names, self.cache = names, used
@@ -703,7 +735,8 @@ class ExtractionCache:
         meshes = {k: c.data for k, c in used.items()}
         mats = np.stack(matrices) if matrices else np.zeros((0, 4, 4))
         self.dirty, self.walked = False, True
-        self.last = (objects, ex.warnings(), keys, meshes, mats, np.array(visible, bool))
+        self.last = (objects, ex.warnings(), keys, meshes, mats, np.array(visible, bool),
+                     np.array([o.holdout for o in objects], bool))
         self.matrices = {o.name: o.matrix_world for o in objects}
         return self.last
 

@@ -86,9 +86,10 @@ void main()
     imageStore(direct_out, px, vec4(0.0, 0.0, 0.0, 1.0));
     vec3 ro, rd;
     camera_ray(px, size, ro, rd);
-    /* Film > Transparent: nothing (rgba 0) where no surface is */
-    imageStore(combined_out, px,
-               sample_plan >= 268435456 ? vec4(0.0) : vec4(sky_background(rd), 1.0));
+    /* Film > Transparent: nothing (rgba 0) where no surface is; a holdout (position w 0.25,
+     * gbuffer.glsl): nothing either way */
+    imageStore(combined_out, px, sample_plan >= 268435456 || pos.w > 0.125 ?
+                                     vec4(0.0) : vec4(sky_background(rd), 1.0));
     return;
   }
   vec3 p = pos.xyz;

@@ -9,7 +9,9 @@
  * wrapping (repeat); at level 0 exactly lumen_addon.materials.sample_texture. The sampler state
  * cannot be set from Python in Blender 5.0 (GPUTexture has no filter / extend mode, no mipmaps).
  * Outputs (colour attachments 0..3, RGBA32F):
- *   out_position: world position xyz, w = 1 where a surface was drawn (0: background)
+ *   out_position: world position xyz, w = 1 where a surface was drawn (0: background; 0.25: a
+ *                 holdout, v_holdout, whose other attachments are 0: every pass takes w < 0.5
+ *                 for background, and the composites write rgba 0 where w > 0.125)
  *   out_normal:   world normal xyz (interpolated, normalised), w = 1
  *   out_albedo:   base colour rgb (linear; the texture replaces it), w = 1
  *   out_emission: emission colour x strength rgb (texture x strength), w = 1
@@ -22,6 +24,7 @@ void main()
   v_uv = uv;
   v_albedo = albedo;
   v_emit = emit;
+  v_holdout = 0.0;
   gl_Position = view_proj * vec4(pos, 1.0);
 }
 //FRAGMENT
@@ -95,6 +98,15 @@ vec3 sample_mipmapped(sampler2D tex, vec2 uv, int base_h)
 
 void main()
 {
+  if (v_holdout > 0.5) {
+    /* a holdout (Cycles, EEVEE): what the camera sees there is nothing, not even the world;
+     * its depth still hides what lies behind it */
+    out_position = vec4(v_pos, 0.25);
+    out_normal = vec4(0.0);
+    out_albedo = vec4(0.0);
+    out_emission = vec4(0.0);
+    return;
+  }
   out_position = vec4(v_pos, 1.0);
   vec3 n = v_nor;
   float len = length(n);

@@ -2,7 +2,8 @@
 /* Lumen GI G-buffer, instanced vertex stage (mesh_batches.py): a unique mesh's local-space
  * corners drawn once per instance with draw_instanced; the instance's row of the instance table
  * (`instances`, RGBA32F, 6 texels per row: the model matrix's rows 0..2, then the normal
- * matrix's rows 0..2, the inverse transpose of its 3x3) is instance_base + gl_InstanceID.
+ * matrix's rows 0..2, the inverse transpose of its 3x3; texel 3's w is 1 for a holdout) is
+ * instance_base + gl_InstanceID.
  * Vertex inputs: pos, nor (local), uv, albedo, emit (per corner, as gbuffer.glsl's).
  * Push constants: view_proj, instance_base (and the fragment stage's: use_albedo_tex,
  * use_emit_tex, albedo_base_h, emit_base_h, footprint_scale). The fragment stage is gbuffer.glsl's.
@@ -25,5 +26,6 @@ void main()
   v_uv = uv;
   v_albedo = albedo;
   v_emit = emit;
+  v_holdout = texelFetch(instances, row_texel(row, 3, 6), 0).w;   /* 1: a holdout */
   gl_Position = view_proj * vec4(world, 1.0);
 }
