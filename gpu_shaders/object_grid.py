@@ -115,22 +115,18 @@ def _entry_cap(counts: np.ndarray, cap: int, budget: int) -> int:
     return lo
 
 
-def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = CELL_CAP,
-                      width: int = GRID_WIDTH, fine_cells: int = FINE_CELLS,
-                      entry_budget: int = ENTRY_BUDGET) -> tuple:
-    """The grid texture's texels for the object table `objects` [n, OBJECT_TEXELS, 4];
-    returns (texels float32 [rows, width, 4], info dict: dims, cell, margin, entries, overflow
-    (cells running the full loop), truncated (crowded cells keeping their nearest), the cap used,
-    mean / max count).
+class GridLists:
+    """What an incremental build starts from: the last build's layout (`key`) and every fine
+    cell's listed pairs (before the per-cell cap; sorted by cell, nearest first) and bound B."""
 
-    Two levels: a coarse grid (at most grid_max cells per axis) finds each cell's candidates
-    within the reach and its bound B; where that grid has at most fine_cells / 8 cells (a flat
-    or small scene), each cell is split in 2 x 2 x 2 and only the coarse cell's listed instances
-    are measured against its children (an instance within M of a child is within M of its
-    parent; an unlisted one is at least the parent's B from it, or is a parent-listed one whose
-    distance to the child is measured): the lists of a 1,000-icosphere field get shorter (15.6
-    -> 11.9 mean) and its sample's early stop nearer, without a reach pass over 8x the cells."""
-    valid, centre, radius, alo, ahi, voxel = instance_bounds(objects)
+    def __init__(self, key, cells, insts, dists, bound):
+        self.key, self.cells, self.insts, self.dists, self.bound = key, cells, insts, dists, bound
+
+
+def _layout(objects: np.ndarray, grid_max: int, fine_cells: int) -> dict:
+    """The grid's box, cells and margin for the object table (every valid instance's bounds)."""
+    bounds = instance_bounds(objects)
+    valid, _, _, alo, ahi, voxel = bounds
     idx = np.flatnonzero(valid)
     if len(idx):
         lo, hi = alo[idx].min(axis=0), ahi[idx].max(axis=0)
@@ -141,24 +137,54 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     else:
         lo, hi, cell, dims, margin, fallback_voxel = (np.zeros(3), np.zeros(3), 1.0,
                                                        np.ones(3, np.int64), 1.0, 1.0)
+    split = 2 if int(dims.prod()) * 8 <= fine_cells else 1
+    key = (tuple(lo), tuple(hi), cell, tuple(int(v) for v in dims), margin, len(idx),
+           len(objects), split)
+    return dict(bounds=bounds, idx=idx, lo=lo, hi=hi, cell=cell, dims=dims, margin=margin,
+                fallback_voxel=fallback_voxel, reach=REACH_MARGINS * margin, split=split, key=key)
+
+
+def _coarse_box(lay: dict, boxes) -> tuple:
+    """The coarse cells (inclusive index box) whose lists world boxes [(lo, hi)] of changed
+    instances may change: an instance is paired with the cells its AABB grown by the reach
+    covers (as _fine_lists pairs them)."""
+    lo, cell, dims, reach = lay["lo"], lay["cell"], lay["dims"], lay["reach"]
+    blo = np.min([np.asarray(b[0], np.float64) for b in boxes], axis=0)
+    bhi = np.max([np.asarray(b[1], np.float64) for b in boxes], axis=0)
+    a = np.clip(np.floor((blo - reach - lo) / cell), 0, dims - 1).astype(np.int64)
+    b = np.clip(np.floor((bhi + reach - lo) / cell), 0, dims - 1).astype(np.int64)
+    return a, b
+
+
+def _fine_lists(lay: dict, box=None) -> tuple:
+    """(fine cell, instance, distance) of every listed pair, the fine cells' bounds B, fine
+    dims and edge. box (coarse index lo, hi, inclusive): only the coarse cells in it are
+    computed (their fine children's pairs and bounds; the other cells' bounds are not)."""
+    valid, centre, radius, alo, ahi, voxel = lay["bounds"]
+    idx, lo, hi, cell, dims = lay["idx"], lay["lo"], lay["hi"], lay["cell"], lay["dims"]
+    margin, reach, split = lay["margin"], lay["reach"], lay["split"]
     ncells = int(dims.prod())
-    reach = REACH_MARGINS * margin
     bound = np.full(ncells, FAR)
     in_reach = np.zeros(ncells, np.int64)
     xyz_l, insts_l = [], []
     # candidate cells of each instance: its AABB grown by the reach, clipped to the grid
     cl = np.clip(np.floor((alo[idx] - reach - lo) / cell), 0, dims - 1).astype(np.int64)
     ch = np.clip(np.floor((ahi[idx] + reach - lo) / cell), 0, dims - 1).astype(np.int64)
+    sub = idx
+    if box is not None:                # only the pairs with the box's cells
+        cl, ch = np.maximum(cl, box[0]), np.minimum(ch, box[1])
+        some = (cl <= ch).all(axis=1)
+        sub, cl, ch = idx[some], cl[some], ch[some]
     per = (ch - cl + 1).prod(axis=1)
     ends = np.cumsum(per)
     starts = np.searchsorted(ends, np.arange(0, int(ends[-1]) if len(ends) else 0, PAIR_CHUNK),
                              side="right")
-    bounds_at = list(starts) + [len(idx)]
+    bounds_at = list(starts) + [len(sub)]
     for a, b in zip(bounds_at[:-1], bounds_at[1:]):          # batches of instances, not one each
         if b <= a:
             continue
         k, xyz = _pairs(cl[a:b], ch[a:b])
-        inst = idx[a:b][k]
+        inst = sub[a:b][k]
         d = _cell_distance(inst, xyz, lo, cell, centre, radius, alo, ahi)
         c = xyz[:, 0] + dims[0] * (xyz[:, 1] + dims[1] * xyz[:, 2])
         near = d < reach
@@ -173,7 +199,6 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     # instances beyond the reach of a cell exist where not all of them were within it
     bound = np.where(in_reach < len(idx), np.minimum(bound, reach), bound)
     # the fine level: each coarse cell's listed instances against its 2^3 (or 1) children
-    split = 2 if ncells * 8 <= fine_cells else 1
     fcell = cell / split
     fdims = np.clip(np.ceil((hi - lo) / fcell - 1e-9).astype(np.int64), 1, dims * split)
     child = np.stack(np.meshgrid(*[np.arange(split)] * 3, indexing="ij"), -1).reshape(-1, 3)
@@ -183,18 +208,90 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     fxyz, finst = fxyz[inside], finst[inside]
     d = _cell_distance(finst, fxyz, lo, fcell, centre, radius, alo, ahi)
     c = fxyz[:, 0] + fdims[0] * (fxyz[:, 1] + fdims[1] * fxyz[:, 2])
-    ncells = int(fdims.prod())
     g = np.stack(np.meshgrid(*[np.arange(n) for n in fdims], indexing="ij"), -1)
     g = g.transpose(2, 1, 0, 3).reshape(-1, 3) // split       # each fine cell's parent, x fastest
     bound = bound[g[:, 0] + dims[0] * (g[:, 1] + dims[1] * g[:, 2])]
     unl = d >= margin
     np.minimum.at(bound, c[unl], d[unl])
-    cells, insts, dists = c[~unl], finst[~unl], d[~unl]
+    return c[~unl], finst[~unl], d[~unl], bound, fdims, fcell
+
+
+def _in_box(cells: np.ndarray, fdims, split: int, box) -> np.ndarray:
+    """Whether fine cells (flat indices) lie in coarse index box `box` (inclusive)."""
+    xyz = np.stack([cells % fdims[0], (cells // fdims[0]) % fdims[1],
+                    cells // (fdims[0] * fdims[1])], axis=1) // split
+    return ((xyz >= box[0]) & (xyz <= box[1])).all(axis=1)
+
+
+def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = CELL_CAP,
+                      width: int = GRID_WIDTH, fine_cells: int = FINE_CELLS,
+                      entry_budget: int = ENTRY_BUDGET, previous: GridLists | None = None,
+                      boxes=None) -> tuple:
+    """The grid texture's texels for the object table `objects` [n, OBJECT_TEXELS, 4];
+    returns (texels float32 [rows, width, 4], info dict: dims, cell, margin, entries, overflow
+    (cells running the full loop), truncated (crowded cells keeping their nearest), the cap used,
+    mean / max count, `lists` (GridLists, for the next call's `previous`), `incremental`).
+
+    Two levels: a coarse grid (at most grid_max cells per axis) finds each cell's candidates
+    within the reach and its bound B; where that grid has at most fine_cells / 8 cells (a flat
+    or small scene), each cell is split in 2 x 2 x 2 and only the coarse cell's listed instances
+    are measured against its children (an instance within M of a child is within M of its
+    parent; an unlisted one is at least the parent's B from it, or is a parent-listed one whose
+    distance to the child is measured): the lists of a 1,000-icosphere field get shorter (15.6
+    -> 11.9 mean) and its sample's early stop nearer, without a reach pass over 8x the cells.
+
+    `previous` (the last build's info["lists"]) and `boxes` (the world AABBs, old and new, of
+    the rows that changed since: SceneResources' change log) make it incremental: when the
+    grid's box, cells and margin stay the same, only the coarse cells within the reach of those
+    boxes are measured again, and the rest keep their lists and bounds. The texels are the same
+    as a full build's (tests/core/test_object_grid_update.py). Why: one sphere dragged among
+    1,000 rebuilt the whole grid every redraw (58 ms of CPU)."""
+    lay = _layout(objects, grid_max, fine_cells)
+    split = lay["split"]
+    incremental = previous is not None and boxes is not None and previous.key == lay["key"]
+    if incremental and not len(boxes):
+        cells, insts, dists, bound = previous.cells, previous.insts, previous.dists, previous.bound
+        fcell = lay["cell"] / split
+        fdims = np.clip(np.ceil((lay["hi"] - lay["lo"]) / fcell - 1e-9).astype(np.int64), 1,
+                        lay["dims"] * split)
+    elif incremental:
+        box = _coarse_box(lay, boxes)
+        cells, insts, dists, bound_new, fdims, fcell = _fine_lists(lay, box)
+        cells, insts, dists = _sorted(cells, insts, dists)
+        redone = _in_box(np.arange(len(bound_new)), fdims, split, box)     # per fine cell
+        keep = ~redone[previous.cells]
+        # the kept pairs stay sorted; the new ones (cells disjoint from theirs) go in between
+        at = np.searchsorted(previous.cells[keep], cells)
+        cells = np.insert(previous.cells[keep], at, cells)
+        insts = np.insert(previous.insts[keep], at, insts)
+        dists = np.insert(previous.dists[keep], at, dists)
+        bound = np.where(redone, bound_new, previous.bound)
+    else:
+        cells, insts, dists, bound, fdims, fcell = _fine_lists(lay)
+        cells, insts, dists = _sorted(cells, insts, dists)
+    lists = GridLists(lay["key"], cells, insts, dists, bound)
+    texels, info = _pack(lay, cells, insts, dists, bound, fdims, fcell, len(objects), cap,
+                         width, entry_budget)
+    info.update(lists=lists, incremental=bool(incremental))
+    return texels, info
+
+
+def _sorted(cells, insts, dists) -> tuple:
+    """The pairs by cell, nearest first (ties by instance: the same order every build)."""
+    order = np.lexsort((insts, dists, cells))
+    return cells[order], insts[order], dists[order]
+
+
+def _pack(lay, cells, insts, dists, bound, fdims, fcell, n_objects, cap, width,
+          entry_budget) -> tuple:
+    """The texels of the fine cells' listed pairs (_sorted) and bounds (the cap and truncation
+    applied)."""
+    voxel = lay["bounds"][5]
+    lo, margin, fallback_voxel = lay["lo"], lay["margin"], lay["fallback_voxel"]
     cell, dims = fcell, fdims
+    ncells = int(dims.prod())
     counts = np.bincount(cells, minlength=ncells)
     cap = _entry_cap(counts, cap, entry_budget)
-    order = np.lexsort((insts, dists, cells))                 # by cell, nearest first
-    cells, insts, dists = cells[order], insts[order], dists[order]
     # a crowded cell keeps its nearest `cap` and bounds the rest by the first one dropped, where
     # that bound leaves every rule that reads a value in voxels of a listed object exact
     rank = np.arange(len(cells)) - (np.cumsum(counts) - counts)[cells]
@@ -214,7 +311,7 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     entries = len(insts)
     list_texels = -(-entries // 2)
     total = HEADER_TEXELS + ncells + list_texels
-    if total * 4 >= 1 << 24 or len(objects) >= 1 << 24:
+    if total * 4 >= 1 << 24 or n_objects >= 1 << 24:
         raise ValueError(f"object grid of {total} texels: beyond exact float integers")
     rows = -(-total // width)
     tex = np.zeros((rows * width, 4), np.float32)
@@ -236,6 +333,27 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
                 mean_count=float(kept.mean()) if ncells else 0.0,
                 max_count=int(counts.max()) if ncells else 0)
     return tex.reshape(rows, width, 4), info
+
+
+def changed_boxes(old: np.ndarray, new: np.ndarray, max_rows: int):
+    """The world boxes (lo, hi) the rows that differ between object tables `old` and `new`
+    change: each changed row's old and new AABB (instance_bounds: mesh bounds grown by half a
+    voxel; one box around both where they touch, a row dragged a little), or None (everything)
+    when the tables differ in size or more than max_rows rows changed."""
+    if old is None or np.shape(old) != np.shape(new):
+        return None
+    old, new = np.asarray(old, np.float32), np.asarray(new, np.float32)
+    rows = np.flatnonzero((old != new).reshape(len(new), -1).any(axis=1))
+    if len(rows) > max_rows:
+        return None
+    va, _, _, alo, ahi, _ = instance_bounds(old[rows])
+    vb, _, _, blo, bhi, _ = instance_bounds(new[rows])
+    touch = va & vb & np.all((alo <= bhi) & (blo <= ahi), axis=1)
+    boxes = [(np.minimum(alo[i], blo[i]), np.maximum(ahi[i], bhi[i]))
+             for i in np.flatnonzero(touch)]
+    boxes += [(alo[i], ahi[i]) for i in np.flatnonzero(va & ~touch)]
+    boxes += [(blo[i], bhi[i]) for i in np.flatnonzero(vb & ~touch)]
+    return boxes
 
 
 def sample_bound(texels: np.ndarray, points: np.ndarray) -> np.ndarray:

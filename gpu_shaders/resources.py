@@ -22,7 +22,7 @@ import gpu
 import numpy as np
 
 from . import glsl_include
-from .object_grid import build_object_grid, instance_bounds
+from .object_grid import build_object_grid, changed_boxes
 from .packing import OBJECT_TEXELS, PARKED, PackedScene, pack_bake, row_table
 
 GLSL = Path(__file__).resolve().parent / "glsl"
@@ -112,14 +112,18 @@ class SceneResources:
         if not len(rows):
             raise ValueError("the bake has no objects to trace")
         t0 = time.perf_counter()
-        self._log_changes(getattr(self.packed, "objects", None), rows)
+        old = getattr(self.packed, "objects", None)
+        boxes = changed_boxes(old, rows, self.CHANGE_ROWS)
+        self._log_changes(boxes)
         self.packed.objects = rows
         # the last line's unused rows parked (a bounding sphere 1e30 m away: every loop over
         # the objects, sdf_object_count's, skips them)
         parked = np.array(rows[-1], np.float32)
         parked[8] = (PARKED, PARKED, PARKED, 0.0)
         self.objects = row_texture(rows, pad=parked)
-        texels, self.grid_info = build_object_grid(rows)
+        # only the cells near what changed are measured again (the same texels as a full build)
+        previous = getattr(self, "grid_info", {}).get("lists")
+        texels, self.grid_info = build_object_grid(rows, previous=previous, boxes=boxes)
         self.grid_shape = texels.shape
         self.grid = gpu.types.GPUTexture((texels.shape[1], texels.shape[0]), format='RGBA32F',
                                          data=float_buffer(texels))
@@ -128,28 +132,16 @@ class SceneResources:
     CHANGE_LOG = 64        # object-table changes kept for consumers that lag behind
     CHANGE_ROWS = 256      # rows changed at once beyond which a change counts as everything
 
-    def _log_changes(self, old, new):
+    def _log_changes(self, boxes):
         """Record which world boxes the new object rows change (objects_version + 1): the old and
-        new world AABBs (object_grid.instance_bounds, half a voxel grown) of every row that
-        differs, or None (everything) when the table's size changed or more than CHANGE_ROWS
-        rows did (a parent moving thousands of children). A value of the scene SDF
-        changes only within those boxes, so the global SDF refreshes only their cells."""
+        new world AABBs (object_grid.changed_boxes) of every row that differs, or None
+        (everything) when the table's size changed or more than CHANGE_ROWS rows did (a parent
+        moving thousands of children). A value of the scene SDF changes only within those
+        boxes, so the global SDF refreshes only their cells and the object grid only the
+        cells within its reach of them."""
         if not hasattr(self, "objects_version"):
             self.objects_version, self.changes = 0, []
             return
-        boxes = None
-        if old is not None and np.shape(old) == np.shape(new):
-            old, new = np.asarray(old, np.float32), np.asarray(new, np.float32)
-            rows = np.flatnonzero((old != new).reshape(len(new), -1).any(axis=1))
-            if len(rows) <= self.CHANGE_ROWS:
-                va, _, _, alo, ahi, _ = instance_bounds(old[rows])
-                vb, _, _, blo, bhi, _ = instance_bounds(new[rows])
-                # a row moved a little (dragged): one box around both; moved far: two
-                touch = va & vb & np.all((alo <= bhi) & (blo <= ahi), axis=1)
-                boxes = [(np.minimum(alo[i], blo[i]), np.maximum(ahi[i], bhi[i]))
-                         for i in np.flatnonzero(touch)]
-                boxes += [(alo[i], ahi[i]) for i in np.flatnonzero(va & ~touch)]
-                boxes += [(blo[i], bhi[i]) for i in np.flatnonzero(vb & ~touch)]
         self.objects_version += 1
         self.changes = (self.changes + [(self.objects_version, boxes)])[-self.CHANGE_LOG:]
 

@@ -111,7 +111,7 @@ def job():
         np.save(f"grid{{cap}}.npy", np.concatenate([compute.read(t)[0] for t in outs], axis=1))
         if cap != 1024:
             np.save(f"texels{{cap}}.npy", texels)
-        runs[cap] = dict((k, v) for k, v in grid_info.items() if k != "seconds")
+        runs[cap] = dict((k, v) for k, v in grid_info.items() if k not in ("seconds", "lists"))
     np.save("points.npy", pts)
     OUT.update(objects=len(objs), runs=runs, stats=res.stats())
 
