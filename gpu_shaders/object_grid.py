@@ -31,9 +31,11 @@ sample there made one F12 GI iteration at 16 px take 113-119 s, with no cell ove
 (the sample walks its list nearest first and stops early, so a long list costs what is near).
 
 Sizes: cubic cells, at most GRID_MAX = 32 per axis (32^3 = 32768 cells, 0.5 MiB of RGBA32F):
-the grid is rebuilt whenever the object table is (an object moved), so its build must stay tens
-of milliseconds (about 60 ms of CPU for 1,000 instances in 32 x 32 x 1 cells); 64^3 would be 8x the cells and pairs for lists that are only shorter in scenes
-denser than one object per cell. M = one cell edge (at least 4 voxels of the coarsest object, so
+the grid is built whenever the object table is uploaded (an object moved), so its build must
+stay tens of milliseconds (about 60 ms of CPU for 1,000 instances in 32 x 32 x 1 cells; after
+a move only the cells within reach of the moved rows are measured again, the rest of the last
+build kept: build_object_grid's `previous`); 64^3 would be 8x the cells and pairs for lists
+that are only shorter in scenes denser than one object per cell. M = one cell edge (at least 4 voxels of the coarsest object, so
 a clamped value never reads as "near a surface" to the thin-wall and shell rules).
 
 Texture layout (`grid`: float32 [rows, GRID_WIDTH, 4], uploaded as one RGBA32F 2D texture,
