@@ -26,6 +26,8 @@ Shader compilation happens in the first N's warm-ups.
 again, and the ratio N=max / N=min per round and their median (a shared host's speed drifts by
 up to 2x over minutes: the two N of one round run back to back).
 --move K: per N, the K redraws after one object moves 0.4 m (8 still redraws before it).
+--drag K: per N, K redraws while one object moves 5 cm before each (a drag): their sum and
+max, and the global SDF's share.
 --passes: every compute dispatch timed by shader (bench/pass_profile.py's timed_dispatches; on
 llvmpipe a dispatch runs before it returns), per N the still viewport frames' means and the
 last F12's sums (and the default F12's), and a table of each pass at N=min against N=max,
@@ -168,6 +170,8 @@ def measure(n: int, args, tmp: Path) -> dict:
                             for k in {k for r in still for k in r}})
         if args.move:
             view["move"], view["move_split"] = move_redraws(scene, args, n)
+        if args.drag:
+            view["drag"], view["drag_gsdf"] = drag_redraws(scene, args, n)
         if n > args.f12_max:
             return dict(n=n, bake=bake_seconds, view=view, f12=None,
                         eevee=eevee_times(scene, args.repeat) if args.eevee else None,
@@ -271,6 +275,32 @@ def move_redraws(scene, args, n: int) -> list:
 
 
 MOVE_WARM = 8
+
+
+def drag_redraws(scene, args, n: int) -> tuple:
+    """(ms of each of `args.drag` redraws, ms of the global SDF's update in each) while one
+    object (the middle one) moves 5 cm before every redraw, after MOVE_WARM still ones: an
+    artist dragging it."""
+    import bpy
+
+    import viewport_harness
+    from lumen_gi.gpu_shaders import engine
+
+    name = f"Obj{n // 2}"
+    gsdf = []
+
+    def on_redraw(i):
+        if i >= MOVE_WARM:
+            gsdf.append((engine.LAST_RENDER.get("gi_timings") or {}).get("gsdf", 0.0) * 1000)
+        if i >= MOVE_WARM - 1:
+            bpy.data.objects[name].location.x += 0.05
+
+    out = viewport_harness.run(scene, engine.LumenGIRenderEngine, args.size, args.size,
+                               redraws=MOVE_WARM + args.drag, on_redraw=on_redraw)
+    if "error" in engine.LAST_RENDER:
+        raise RuntimeError(engine.LAST_RENDER.get("traceback", engine.LAST_RENDER["error"]))
+    bpy.data.objects[name].location.x -= 0.05 * (args.drag + 1)
+    return [s * 1000 for s in out["seconds"][MOVE_WARM:]], gsdf
 
 
 def eevee_times(scene, repeat: int) -> dict:
@@ -384,6 +414,8 @@ def main():
     ap.add_argument("--alternate", type=int, default=0, metavar="R",
                     help="then R rounds reopening each count's scene in turn: the ratio per "
                          "round (robust to a shared host's drift)")
+    ap.add_argument("--drag", type=int, default=0, metavar="K",
+                    help="per N, K redraws while one object moves 5 cm before each")
     ap.add_argument("--move", type=int, default=0, metavar="K",
                     help="then time the K redraws after one object moves 0.4 m (8 covers "
                          "every clipmap level's frame)")
@@ -426,6 +458,11 @@ def main():
                       f" (sum {sum(m):.0f}, max {max(m):.0f}; still mean {v['mean']:.0f})",
                       flush=True)
                 print(f"    its first redraw's split ms: {fmt(v['move_split'])}", flush=True)
+            if "drag" in v:
+                d, g = v["drag"], v["drag_gsdf"]
+                print(f"  dragged (5 cm a redraw): {len(d)} redraws, sum {sum(d):.0f} ms, max "
+                      f"{max(d):.0f} ms; global SDF sum {sum(g):.0f} ms, max {max(g):.0f} ms",
+                      flush=True)
             if f is not None:
                 print(f"  F12 (1 GI iteration): median {f['median']:.1f} ms; split ms: "
                       f"{fmt(f['split'])}, meshes read {f['meshes_read']}", flush=True)

@@ -26,7 +26,7 @@ import gpu
 import numpy as np
 
 from . import compute
-from .global_sdf_ref import BAND_VOXELS, LEVELS, level_origin, level_voxel
+from .global_sdf_ref import BAND_VOXELS, LEVELS, level_origin, level_voxel, merge_boxes
 from .resources import SceneResources, float_buffer, glsl, read_texture
 
 GROUP = 4
@@ -171,10 +171,9 @@ class GlobalSDF:
                 self._dispatch(k, origin, None if full else self.origins[k])
             kind = "build" if full else ("scroll" if moved else "boxes")
             if not full:            # the cells near what moved (after the scroll: in the new box)
-                for lo, hi in self.pending[k]:
-                    box = self._level_box(k, origin, lo, hi)
-                    if box is not None:
-                        self._dispatch(k, origin, None, box)
+                boxes = [self._level_box(k, origin, lo, hi) for lo, hi in self.pending[k]]
+                for box in merge_boxes([b for b in boxes if b is not None]):
+                    self._dispatch(k, origin, None, box)
                 if self.pending[k] and moved:
                     kind = "scroll+boxes"
             self.origins[k], self.dirty[k], self.last_update[k] = origin, False, int(frame)

@@ -108,3 +108,26 @@ def sample_levels(levels, origins, voxels, points, band_voxels: float = BAND_VOX
         best[idx[take]], lev[idx[take]] = d[take], k
         open_[idx[d < 0.999 * band_voxels * v]] = False
     return best, lev
+
+
+def merge_boxes(boxes) -> list:
+    """Cell boxes [(first xyz, end xyz)] (end exclusive) merged where they overlap or touch: each
+    group replaced by its bounding box. Why: while an object is dragged, a coarse level (updated
+    every 2^k frames) gathers one changed box per redraw, nearly the same box each time, and
+    refreshed them one by one (the refresh of a cell is a recomputation, so a larger box gives
+    the same values)."""
+    out = [(np.asarray(a, np.int64), np.asarray(b, np.int64)) for a, b in boxes]
+    merged = True
+    while merged and len(out) > 1:
+        merged = False
+        for i in range(len(out)):
+            for j in range(i + 1, len(out)):
+                (a0, b0), (a1, b1) = out[i], out[j]
+                if np.all(a0 <= b1) and np.all(a1 <= b0):
+                    out[i] = (np.minimum(a0, a1), np.maximum(b0, b1))
+                    del out[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return [(tuple(int(v) for v in a), tuple(int(v) for v in b)) for a, b in out]
