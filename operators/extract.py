@@ -466,32 +466,41 @@ def mesh_instances(depsgraph, view_layer=None):
             yield inst, source.name
 
 
-class Holdouts:
-    """Whether an instance is a holdout for camera rays (Object > Visibility > Holdout or a
-    holdout collection: Object.holdout_get covers both; an instance also takes its instancer's),
-    asked once per object and instancer in a walk (a particle system's thousands of instances
-    share one answer)."""
+class LayerFlags:
+    """What the view layer says of an instance for camera rays, asked once per object and
+    instancer in a walk (a particle system's thousands of instances share one answer; an
+    instance also takes its instancer's): `holdout` (Object > Visibility > Holdout or a holdout
+    collection: Object.holdout_get covers both) and `indirect_only` (Cycles' Indirect Only
+    collections: not seen by the camera, still casting and bouncing light, as visible_camera
+    off)."""
 
     def __init__(self, depsgraph, view_layer=None):
         self.view_layer = view_layer or depsgraph.view_layer
         self.known = {}
 
-    def _of(self, ob) -> bool:
-        key = ob.as_pointer()
+    def _of(self, ob, what: str) -> bool:
+        key = (ob.as_pointer(), what)
         hit = self.known.get(key)
         if hit is None:
             try:
-                hit = bool(ob.holdout_get(view_layer=self.view_layer))
-            except (TypeError, RuntimeError, ReferenceError):    # not in this view layer
-                hit = bool(getattr(ob, "is_holdout", False))
+                hit = bool(getattr(ob, what + "_get")(view_layer=self.view_layer))
+            except (TypeError, RuntimeError, ReferenceError, AttributeError):
+                # not in this view layer (or a Blender without it): the object's own flag
+                hit = bool(getattr(ob, "is_holdout", False)) if what == "holdout" else False
             self.known[key] = hit
         return hit
 
-    def __call__(self, inst) -> bool:
-        if self._of(inst.object.original):
+    def _either(self, inst, what: str) -> bool:
+        if self._of(inst.object.original, what):
             return True
         return bool(inst.is_instance and inst.parent is not None
-                    and self._of(inst.parent.original))
+                    and self._of(inst.parent.original, what))
+
+    def holdout(self, inst) -> bool:
+        return self._either(inst, "holdout")
+
+    def indirect_only(self, inst) -> bool:
+        return self._either(inst, "indirect_only")
 
 
 def instance_matrices(depsgraph, view_layer=None) -> dict:
@@ -555,7 +564,7 @@ def extract_scene(depsgraph, view_layer=None):
     cache = {}          # (evaluated mesh pointer, material pointers) -> MeshData
     geometry = {}       # evaluated mesh pointer -> shared geometry arrays
     out = []
-    holdout = Holdouts(depsgraph, view_layer)
+    flags = LayerFlags(depsgraph, view_layer)
     for inst, name in mesh_instances(depsgraph, view_layer):
         obj = inst.object
         source = obj.original
@@ -575,8 +584,9 @@ def extract_scene(depsgraph, view_layer=None):
             resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
             normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
             materials=data.materials,
-            camera_visible=bool(getattr(source, "visible_camera", True)),
-            holdout=holdout(inst)))
+            camera_visible=(bool(getattr(source, "visible_camera", True))
+                            and not flags.indirect_only(inst)),
+            holdout=flags.holdout(inst)))
     if getattr(depsgraph, "mode", "VIEWPORT") != 'RENDER':
         for name in hidden_renderable(view_layer or depsgraph.view_layer):
             ex.warn(name, "hidden in the viewport, so not baked; F12 renders it without its "
@@ -693,7 +703,7 @@ class ExtractionCache:
         geometry = {}
         used, keys, objects, matrices, visible = {}, [], [], [], []
         reads = 0
-        holdout = Holdouts(depsgraph, view_layer)
+        flags = LayerFlags(depsgraph, view_layer)
         for inst, name in mesh_instances(depsgraph, view_layer):
             obj = inst.object
             key = mesh_key(inst)
@@ -717,7 +727,7 @@ class ExtractionCache:
             source = obj.original
             props = getattr(source, "lumen", None)
             m = np.array(inst.matrix_world, dtype=np.float64)
-            cam = bool(getattr(source, "visible_camera", True))
+            cam = bool(getattr(source, "visible_camera", True)) and not flags.indirect_only(inst)
             keys.append(key)
             matrices.append(m)
             visible.append(cam)
@@ -726,7 +736,7 @@ class ExtractionCache:
                 two_sided=bool(props.two_sided) if props is not None else False,
                 resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
                 normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
-                materials=data.materials, camera_visible=cam, holdout=holdout(inst)))
+                materials=data.materials, camera_visible=cam, holdout=flags.holdout(inst)))
         names = [o.name for o in objects]
         self.changed = bool(reads) or names != self.names
         self.names, self.cache = names, used

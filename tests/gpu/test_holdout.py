@@ -6,7 +6,8 @@ collection, and a plain one.
 
 - where a held-out cube is nearest, our Combined is exactly rgba 0 (Film > Transparent off), and
   that region matches Cycles' transparent one;
-- the plain cube is drawn as before (alpha 1) and the floor around the cubes too;
+- the plain cube is drawn as before (alpha 1) and the floor around the cubes too; through the
+  Indirect Only cube the camera sees the floor, in ours as in Cycles';
 - the held-out cube's shadow stays on the floor (dark against the sunlit floor beside it), in
   ours as in Cycles'.
 """
@@ -40,6 +41,14 @@ for c in list(by_collection.users_collection):
 held.objects.link(by_collection)
 by_collection.data.materials.append(principled("Coll", (0.1, 0.8, 0.1)))
 bpy.context.view_layer.layer_collection.children["Held"].holdout = True
+indirect = bpy.data.collections.new("Indirect")
+scene.collection.children.link(indirect)
+ghost = cube("Ghost", 1.0, (2.2, -2.0, 0.5))
+for c in list(ghost.users_collection):
+    c.objects.unlink(ghost)
+indirect.objects.link(ghost)
+ghost.data.materials.append(principled("Ghost", (0.9, 0.05, 0.05)))
+bpy.context.view_layer.layer_collection.children["Indirect"].indirect_only = True
 plain = cube("Plain", 1.0, (-2.0, 0.5, 0.5))
 plain.data.materials.append(principled("Plain", (0.1, 0.1, 0.8)))
 sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
@@ -89,7 +98,7 @@ def _pixel(view_proj, p):
     return int(xy[1]), int(xy[0])                 # row, column (row 0 at the bottom)
 
 
-def test_holdouts_are_transparent_and_still_cast_shadows(tmp_path):
+def test_holdouts_are_transparent_indirect_only_unseen_and_both_cast_shadows(tmp_path):
     run = run_python(SNIPPET, tmp_path, timeout=600)
     assert run.returncode == 0, run.explain()
     ours = np.load(tmp_path / "lumen.npy")
@@ -116,6 +125,13 @@ def test_holdouts_are_transparent_and_still_cast_shadows(tmp_path):
         assert bool(held[r, c]) == transparent and bool(theirs[r, c]) == transparent, name
         if not transparent:
             assert surface[r, c] and ours[r, c, 2] > ours[r, c, 0]          # blue
+
+    # an Indirect Only collection's cube: the camera sees the floor through it, as in Cycles
+    r, c = _pixel(vp, (2.2, -2.0, 1.0))
+    print("Ghost ours", ours[r, c], pos[r, c], "cycles", ref[r, c])
+    assert surface[r, c] and abs(pos[r, c, 2]) < 1e-3                  # the floor behind it
+    for img in (ours, ref):
+        assert img[r, c, 3] == 1.0 and abs(img[r, c, 0] - img[r, c, 1]) < 0.1 * img[r, c, 1]
 
     # the held-out cube's shadow on the floor: the sun's ray through the cube's centre
     sun = np.array(run.result["sun"])                   # towards the sun
