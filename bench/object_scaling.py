@@ -25,7 +25,8 @@ Shader compilation happens in the first N's warm-ups.
 --alternate R: then R rounds that reopen each N's baked scene in turn and time its still frames
 again, and the ratio N=max / N=min per round and their median (a shared host's speed drifts by
 up to 2x over minutes: the two N of one round run back to back).
---move K: per N, the K redraws after one object moves 0.4 m (8 still redraws before it).
+--move K: per N, the K redraws after one object moves 0.4 m (8 still redraws before it), and
+the first one's split (with --passes, its largest passes).
 --drag K: per N, K redraws while one object moves 5 cm before each (a drag): their sum and
 max, and the global SDF's share.
 --passes: every compute dispatch timed by shader (bench/pass_profile.py's timed_dispatches; on
@@ -35,7 +36,8 @@ largest growth first: what grows with the object count.
 
     .venv/bin/python bench/object_scaling.py [--counts 10 100 1000] [--size 128] [--repeat 3]
                                              [--still 16] [--quality MEDIUM] [--f12-max N] [--passes] [--eevee]
-                                             [--default-f12] [--alternate R]
+                                             [--default-f12] [--alternate R] [--move K]
+                                             [--drag K]
     .venv/bin/python bench/object_scaling.py --gbuffer-only [--counts ...] [--size 128]
 """
 from __future__ import annotations
