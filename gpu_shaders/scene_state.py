@@ -69,6 +69,7 @@ class SceneState:
         self.names = None            # instance names of the object table on the GPU
         self.matrices = None         # their matrices
         self.matrices_source = None  # the dict they came from (sync's still-frame check)
+        self.no_shadow = frozenset()  # instance names whose rows say "casts no shadow"
         self.left_out = []           # instances with a singular transform (parked rows)
         self.gone = []               # baked instances the scene no longer has (parked rows)
         self.stale = StaleCheck()    # objects added or edited since the bake (engine.frame)
@@ -107,7 +108,7 @@ class SceneState:
         self.mesh_batches = None     # mesh_batches.MeshBatches: the G-buffer's meshes and
                                      # instance table on the GPU
 
-    def plan(self, bake, matrices: dict, lights, table=None) -> set:
+    def plan(self, bake, matrices: dict, lights, table=None, no_shadow=None) -> set:
         """The resources a sync with these inputs would upload (no side effects); `table`:
         instance_table(bake, matrices) when the caller has it."""
         names, keys, mats = table if table is not None else instance_table(bake, matrices)
@@ -116,7 +117,8 @@ class SceneState:
         if self.mesh_keys is None or frozenset(keys) != self.mesh_keys:
             changes |= {"atlas", "indirection", "objects"}
         elif names != self.names or mats.shape != self.matrices.shape \
-                or not np.array_equal(mats, self.matrices):
+                or not np.array_equal(mats, self.matrices) \
+                or (no_shadow is not None and no_shadow != self.no_shadow):
             changes.add("objects")
         if self.lights is None or rows.shape != self.lights.shape \
                 or not np.array_equal(rows, self.lights):
@@ -125,23 +127,27 @@ class SceneState:
             changes.add("cards")
         return changes
 
-    def sync(self, bake, matrices: dict, lights) -> set:
+    def sync(self, bake, matrices: dict, lights, no_shadow=frozenset()) -> set:
         """Upload what changed; returns the set of re-uploaded resources. The same bake, the
         same `matrices` dict object (ExtractionCache.matrices: no walk since the last sync) and
-        equal light rows change nothing: no loop over the instances."""
+        equal light rows change nothing: no loop over the instances. `no_shadow`: the instance
+        names that cast no shadow (their rows' texel 9 y = 1: sdf_lib.glsl sdf_shadow_rays)."""
         rows = np.asarray(lights, np.float32).reshape(-1, 16)
+        no_shadow = frozenset(no_shadow)
         if bake is self.bake and matrices is self.matrices_source and self.lights is not None \
-                and rows.shape == self.lights.shape and np.array_equal(rows, self.lights):
+                and rows.shape == self.lights.shape and np.array_equal(rows, self.lights) \
+                and no_shadow == self.no_shadow:
             self.syncs += 1
             self.last_changes = set()
             return set()
         table = instance_table(bake, matrices)          # a loop over the bake's instances
-        changes = self.plan(bake, matrices, lights, table)
+        changes = self.plan(bake, matrices, lights, table, no_shadow)
         names, keys, mats = table
+        self.no_shadow = no_shadow
         if "atlas" in changes:
             self._upload_all(bake, names, keys, mats)
         elif "objects" in changes:
-            self._upload_objects(bake, keys, mats)
+            self._upload_objects(bake, names, keys, mats)
         if "lights" in changes:
             self.lights = np.asarray(lights, np.float32).reshape(-1, 16).copy()
             self._upload_lights()
@@ -170,7 +176,9 @@ class SceneState:
 
         placed = [SimpleNamespace(name=n, mesh=k, matrix_world=m)
                   for n, k, m in zip(names, keys, mats)]
-        self.resources = SceneResources(pack_scene(bake.meshes, placed, 0))
+        packed = pack_scene(bake.meshes, placed, 0)
+        self._shadow_flags(packed.objects, names)
+        self.resources = SceneResources(packed)
         # pack_scene's rows are instance_row's: the next object upload recomputes only changes
         packed = self.resources.packed
         self._row_cache = (packed, bake, list(keys),
@@ -185,7 +193,13 @@ class SceneState:
         self.light_texture = gpu.types.GPUTexture((4, len(rows)), format='RGBA32F',
                                                   data=float_buffer(rows))
 
-    def _upload_objects(self, bake, keys, mats):
+    def _shadow_flags(self, rows, names):
+        """Texel 9 y of each row: 1 for an instance that casts no shadow."""
+        rows[:, 9, 1] = 0.0
+        if self.no_shadow:
+            rows[[i for i, n in enumerate(names) if n in self.no_shadow], 9, 1] = 1.0
+
+    def _upload_objects(self, bake, names, keys, mats):
         """Rebuild only the object table texture (and its object grid) from the packed offsets
         already on the GPU."""
         packed = self.resources.packed
@@ -202,6 +216,7 @@ class SceneState:
         else:
             rows = np.stack([instance_row(bake.meshes[key], mw, packed.indirection_offset[key])
                              for key, mw in zip(keys, m)])
+        self._shadow_flags(rows, names)
         self._row_cache = (packed, bake, list(keys), m, rows)
         self.resources.set_objects(rows)     # and the object grid built from them
 

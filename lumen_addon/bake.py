@@ -57,6 +57,10 @@ class ObjectInput:
     # view layer): transparent (alpha 0) where it is nearest, it hides what is behind it and
     # still casts and bounces light. Not part of any bake hash.
     holdout: bool = False
+    # Casts shadows (Object > Visibility > Ray Visibility > Shadow): off, light and sky
+    # visibility cones pass it (a window pane, a light blocker); it still bounces and blocks GI.
+    # Not part of any bake hash.
+    casts_shadow: bool = True
 
 
 NO_CARDS = "0"                           # Instance.cards of an object too small for cards

@@ -586,7 +586,8 @@ def extract_scene(depsgraph, view_layer=None):
             materials=data.materials,
             camera_visible=(bool(getattr(source, "visible_camera", True))
                             and not flags.indirect_only(inst)),
-            holdout=flags.holdout(inst)))
+            holdout=flags.holdout(inst),
+            casts_shadow=bool(getattr(source, "visible_shadow", True))))
     if getattr(depsgraph, "mode", "VIEWPORT") != 'RENDER':
         for name in hidden_renderable(view_layer or depsgraph.view_layer):
             ex.warn(name, "hidden in the viewport, so not baked; F12 renders it without its "
@@ -666,6 +667,7 @@ class ExtractionCache:
         self.walked = True        # the last update walked the depsgraph
         self.last = None          # the last walk's result
         self.matrices = {}        # {instance name: world 4x4} of the last walk (one dict object)
+        self.no_shadow = frozenset()  # instance names that cast no shadow (the last walk's)
         self.lights = None        # light_table rows of the last light walk
         self.light_dirty = True
 
@@ -736,7 +738,8 @@ class ExtractionCache:
                 two_sided=bool(props.two_sided) if props is not None else False,
                 resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
                 normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
-                materials=data.materials, camera_visible=cam, holdout=flags.holdout(inst)))
+                materials=data.materials, camera_visible=cam, holdout=flags.holdout(inst),
+                casts_shadow=bool(getattr(source, "visible_shadow", True))))
         names = [o.name for o in objects]
         self.changed = bool(reads) or names != self.names
         self.names, self.cache = names, used
@@ -748,6 +751,8 @@ class ExtractionCache:
         self.last = (objects, ex.warnings(), keys, meshes, mats, np.array(visible, bool),
                      np.array([o.holdout for o in objects], bool))
         self.matrices = {o.name: o.matrix_world for o in objects}
+        # instances that cast no shadow (the same object until the next walk: sync's check)
+        self.no_shadow = frozenset(o.name for o in objects if not o.casts_shadow)
         return self.last
 
     def light_rows(self, depsgraph):

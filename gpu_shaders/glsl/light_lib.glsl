@@ -38,7 +38,7 @@ float light_thin(int obj)
 /* t_shell: where the receiver's own half-voxel shell ends along dir (0 for the lights' narrow
  * cones; the sky's wide cones measure their opening from there, so a surface that only curves
  * away, a sphere or open ground, is not occluded by the thin-wall rule: see sky_light). */
-float cone_visibility_shell(vec3 p, vec3 n, vec3 dir, float t_max, float k, float t_shell)
+float cone_visibility_shell_(vec3 p, vec3 n, vec3 dir, float t_max, float k, float t_shell)
 {
   float h;
   int nearest;
@@ -111,6 +111,15 @@ float cone_visibility_shell(vec3 p, vec3 n, vec3 dir, float t_max, float k, floa
   }
   vis = clamp(vis, 0.0, 1.0);
   return vis * vis * (3.0 - 2.0 * vis);
+}
+
+/* ... with the instances that cast no shadow left out (sdf_lib.glsl: sdf_shadow_rays) */
+float cone_visibility_shell(vec3 p, vec3 n, vec3 dir, float t_max, float k, float t_shell)
+{
+  sdf_shadow_rays = true;
+  float vis = cone_visibility_shell_(p, n, dir, t_max, k, t_shell);
+  sdf_shadow_rays = false;
+  return vis;
 }
 
 float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)

@@ -1,5 +1,5 @@
-"""Holdouts (Object > Visibility > Holdout, a holdout collection in the view layer): Cycles and
-EEVEE render such an object transparent (rgba 0) where it is the nearest surface, hiding what is
+"""Ray visibility as Cycles has it. Holdouts (Object > Visibility > Holdout, a holdout collection
+in the view layer): Cycles and EEVEE render such an object transparent (rgba 0) where it is the nearest surface, hiding what is
 behind it, while it still casts shadows and bounces light. Our F12 against Cycles' on the same
 scene (llvmpipe through bpy): a floor under a sun, a cube held out by its own flag, one by its
 collection, and a plain one.
@@ -9,7 +9,8 @@ collection, and a plain one.
 - the plain cube is drawn as before (alpha 1) and the floor around the cubes too; through the
   Indirect Only cube the camera sees the floor, in ours as in Cycles';
 - the held-out cube's shadow stays on the floor (dark against the sunlit floor beside it), in
-  ours as in Cycles'.
+  ours as in Cycles';
+- where the shadowless cube's shadow would be, the floor is as bright as the sunlit floor.
 """
 import sys
 from pathlib import Path
@@ -49,6 +50,9 @@ for c in list(ghost.users_collection):
 indirect.objects.link(ghost)
 ghost.data.materials.append(principled("Ghost", (0.9, 0.05, 0.05)))
 bpy.context.view_layer.layer_collection.children["Indirect"].indirect_only = True
+shadowless = cube("Shadowless", 1.0, (0.0, 2.5, 0.5))
+shadowless.data.materials.append(principled("Shadowless", (0.8, 0.8, 0.1)))
+shadowless.visible_shadow = False
 plain = cube("Plain", 1.0, (-2.0, 0.5, 0.5))
 plain.data.materials.append(principled("Plain", (0.1, 0.1, 0.8)))
 sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
@@ -98,7 +102,7 @@ def _pixel(view_proj, p):
     return int(xy[1]), int(xy[0])                 # row, column (row 0 at the bottom)
 
 
-def test_holdouts_are_transparent_indirect_only_unseen_and_both_cast_shadows(tmp_path):
+def test_holdout_indirect_only_and_shadow_visibility_as_cycles(tmp_path):
     run = run_python(SNIPPET, tmp_path, timeout=600)
     assert run.returncode == 0, run.explain()
     ours = np.load(tmp_path / "lumen.npy")
@@ -147,3 +151,17 @@ def test_holdouts_are_transparent_indirect_only_unseen_and_both_cast_shadows(tmp
           "cycles", lum(ref, rs, cs), lum(ref, rl, cl))
     assert lum(ref, rs, cs) < 0.5 * lum(ref, rl, cl)       # (the configuration)
     assert lum(ours, rs, cs) < 0.5 * lum(ours, rl, cl)
+
+    # a cube that casts no shadow (Visibility > Ray Visibility > Shadow off): the floor where
+    # its shadow would be is as bright as the sunlit floor, in ours as in Cycles'; the cube
+    # itself is drawn
+    centre = np.array([0.0, 2.5, 0.5])
+    spot = centre - sun * (centre[2] / sun[2])
+    spot[0] -= 0.4
+    rn, cn = _pixel(vp, spot)
+    rt, ct = _pixel(vp, (0.0, 2.5, 1.0))
+    assert surface[rn, cn] and abs(pos[rn, cn, 2]) < 1e-3 and surface[rt, ct]
+    print("no shadow / lit: ours", lum(ours, rn, cn), lum(ours, rl, cl),
+          "cycles", lum(ref, rn, cn), lum(ref, rl, cl))
+    for img in (ref, ours):
+        assert lum(img, rn, cn) > 0.8 * lum(img, rl, cl)
