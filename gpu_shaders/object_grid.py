@@ -140,10 +140,13 @@ def _layout(objects: np.ndarray, grid_max: int, fine_cells: int) -> dict:
         lo, hi, cell, dims, margin, fallback_voxel = (np.zeros(3), np.zeros(3), 1.0,
                                                        np.ones(3, np.int64), 1.0, 1.0)
     split = 2 if int(dims.prod()) * 8 <= fine_cells else 1
+    fcell = cell / split
+    fdims = np.clip(np.ceil((hi - lo) / fcell - 1e-9).astype(np.int64), 1, dims * split)
     key = (tuple(lo), tuple(hi), cell, tuple(int(v) for v in dims), margin, len(idx),
            len(objects), split)
     return dict(bounds=bounds, idx=idx, lo=lo, hi=hi, cell=cell, dims=dims, margin=margin,
-                fallback_voxel=fallback_voxel, reach=REACH_MARGINS * margin, split=split, key=key)
+                fallback_voxel=fallback_voxel, reach=REACH_MARGINS * margin, split=split,
+                fcell=fcell, fdims=fdims, key=key)
 
 
 def _coarse_box(lay: dict, boxes) -> tuple:
@@ -159,12 +162,13 @@ def _coarse_box(lay: dict, boxes) -> tuple:
 
 
 def _fine_lists(lay: dict, box=None) -> tuple:
-    """(fine cell, instance, distance) of every listed pair, the fine cells' bounds B, fine
-    dims and edge. box (coarse index lo, hi, inclusive): only the coarse cells in it are
-    computed (their fine children's pairs and bounds; the other cells' bounds are not)."""
+    """(fine cell, instance, distance) of every listed pair and the fine cells' bounds B.
+    box (coarse index lo, hi, inclusive): only the coarse cells in it are computed (their fine
+    children's pairs and bounds; the other cells' bounds are not)."""
     valid, centre, radius, alo, ahi, voxel = lay["bounds"]
-    idx, lo, hi, cell, dims = lay["idx"], lay["lo"], lay["hi"], lay["cell"], lay["dims"]
+    idx, lo, cell, dims = lay["idx"], lay["lo"], lay["cell"], lay["dims"]
     margin, reach, split = lay["margin"], lay["reach"], lay["split"]
+    fcell, fdims = lay["fcell"], lay["fdims"]
     ncells = int(dims.prod())
     bound = np.full(ncells, FAR)
     in_reach = np.zeros(ncells, np.int64)
@@ -201,8 +205,6 @@ def _fine_lists(lay: dict, box=None) -> tuple:
     # instances beyond the reach of a cell exist where not all of them were within it
     bound = np.where(in_reach < len(idx), np.minimum(bound, reach), bound)
     # the fine level: each coarse cell's listed instances against its 2^3 (or 1) children
-    fcell = cell / split
-    fdims = np.clip(np.ceil((hi - lo) / fcell - 1e-9).astype(np.int64), 1, dims * split)
     child = np.stack(np.meshgrid(*[np.arange(split)] * 3, indexing="ij"), -1).reshape(-1, 3)
     fxyz = (xyz[:, None, :] * split + child[None]).reshape(-1, 3)
     finst = np.repeat(insts, len(child))
@@ -215,7 +217,7 @@ def _fine_lists(lay: dict, box=None) -> tuple:
     bound = bound[g[:, 0] + dims[0] * (g[:, 1] + dims[1] * g[:, 2])]
     unl = d >= margin
     np.minimum.at(bound, c[unl], d[unl])
-    return c[~unl], finst[~unl], d[~unl], bound, fdims, fcell
+    return c[~unl], finst[~unl], d[~unl], bound
 
 
 def _in_box(cells: np.ndarray, fdims, split: int, box) -> np.ndarray:
@@ -249,16 +251,13 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     as a full build's (tests/core/test_object_grid_update.py). Why: one sphere dragged among
     1,000 rebuilt the whole grid every redraw (58 ms of CPU)."""
     lay = _layout(objects, grid_max, fine_cells)
-    split = lay["split"]
+    split, fdims = lay["split"], lay["fdims"]
     incremental = previous is not None and boxes is not None and previous.key == lay["key"]
     if incremental and not len(boxes):
         cells, insts, dists, bound = previous.cells, previous.insts, previous.dists, previous.bound
-        fcell = lay["cell"] / split
-        fdims = np.clip(np.ceil((lay["hi"] - lay["lo"]) / fcell - 1e-9).astype(np.int64), 1,
-                        lay["dims"] * split)
     elif incremental:
         box = _coarse_box(lay, boxes)
-        cells, insts, dists, bound_new, fdims, fcell = _fine_lists(lay, box)
+        cells, insts, dists, bound_new = _fine_lists(lay, box)
         cells, insts, dists = _sorted(cells, insts, dists)
         redone = _in_box(np.arange(len(bound_new)), fdims, split, box)     # per fine cell
         keep = ~redone[previous.cells]
@@ -269,10 +268,10 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
         dists = np.insert(previous.dists[keep], at, dists)
         bound = np.where(redone, bound_new, previous.bound)
     else:
-        cells, insts, dists, bound, fdims, fcell = _fine_lists(lay)
+        cells, insts, dists, bound = _fine_lists(lay)
         cells, insts, dists = _sorted(cells, insts, dists)
     lists = GridLists(lay["key"], cells, insts, dists, bound)
-    texels, info = _pack(lay, cells, insts, dists, bound, fdims, fcell, len(objects), cap,
+    texels, info = _pack(lay, cells, insts, dists, bound, len(objects), cap,
                          width, entry_budget)
     info.update(lists=lists, incremental=bool(incremental))
     return texels, info
@@ -284,13 +283,13 @@ def _sorted(cells, insts, dists) -> tuple:
     return cells[order], insts[order], dists[order]
 
 
-def _pack(lay, cells, insts, dists, bound, fdims, fcell, n_objects, cap, width,
+def _pack(lay, cells, insts, dists, bound, n_objects, cap, width,
           entry_budget) -> tuple:
     """The texels of the fine cells' listed pairs (_sorted) and bounds (the cap and truncation
     applied)."""
     voxel = lay["bounds"][5]
     lo, margin, fallback_voxel = lay["lo"], lay["margin"], lay["fallback_voxel"]
-    cell, dims = fcell, fdims
+    cell, dims = lay["fcell"], lay["fdims"]
     ncells = int(dims.prod())
     counts = np.bincount(cells, minlength=ncells)
     cap = _entry_cap(counts, cap, entry_budget)

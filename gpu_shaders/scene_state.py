@@ -195,9 +195,7 @@ class SceneState:
 
     def _shadow_flags(self, rows, names):
         """Texel 9 y of each row: 1 for an instance that casts no shadow."""
-        rows[:, 9, 1] = 0.0
-        if self.no_shadow:
-            rows[[i for i, n in enumerate(names) if n in self.no_shadow], 9, 1] = 1.0
+        rows[:, 9, 1] = np.isin(names, list(self.no_shadow)) if self.no_shadow else 0.0
 
     def _upload_objects(self, bake, names, keys, mats):
         """Rebuild only the object table texture (and its object grid) from the packed offsets
