@@ -42,7 +42,8 @@ texture as it is on the GPU (no read-back) through Blender's display transform, 
 "refining n/N" until the history is full and asks for redraws until then. `view_update`
 reads depsgraph.updates into LAST_VIEW_UPDATE, marks the objects, meshes, materials and images
 it names for the staleness check and the extraction cache to read again, bumps the state's
-epoch (the progressive direct light starts again) and tags a redraw. Compiled passes are cached
+epoch (and, unless objects only moved, the direct epoch: the progressive direct light starts
+again everywhere; after a move only where the move reaches) and tags a redraw. Compiled passes are cached
 per process and freed at exit before Blender's GPU module (gpu_shaders.free_shaders).
 
 It works headless: Blender gives a RenderEngine with bl_use_gpu_context a GPU context in
@@ -312,8 +313,10 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     else:          # the viewport: a part of the samples per redraw, then kept (Progressive)
         if changes:
             state.epoch += 1
+        if changes - {"objects"}:     # moved objects restart only the pixels they reach
+            state.direct_epoch += 1
         key = (np.asarray(view_proj, np.float64).tobytes(), width, height, sky_cones,
-               state.epoch, sky.key)
+               state.direct_epoch, sky.key)
         out = state.direct.shade(key, res, gbuf, state.lights, sky, cam_pos, inv_vp, width,
                                  height, sky_cones, state.light_texture)
     t4 = time.perf_counter()
@@ -408,6 +411,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         gbuffer_seconds=t3 - t2, direct_seconds=t4 - t3, resources_seconds=t2 - t1,
         direct_compile_seconds=out["compile_seconds"], shade_seconds=out["shade_seconds"],
         direct_part=out.get("part", (0, direct_light.LIGHT_SAMPLES)),
+        direct_restart=None if final else state.direct.last_restart,
         gpu_bytes=MEMORY[scene.name], frame_seconds=t5 - t0, reused_frame=False, **gi_info,
         **aa_info)
     if stale:
@@ -434,6 +438,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                       combined=result.read(textures["Combined"]))
         if KEEP_IMAGES:
             LAST_RENDER.update(images, shown=images["combined"])
+            if not final and state.direct.parts is not None:    # each pixel's parts so far
+                LAST_RENDER["direct_parts"] = result.read(state.direct.parts)
         if view != "COMBINED":
             result.shown = (gi_methods.debug_image(view, state, width, height)
                             if view in gi_methods.DEBUG_VIEWS or (method.method != "LUMEN"
@@ -628,10 +634,14 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         """Record what the depsgraph says changed; the next view_draw's frame() syncs the scene
         state, which re-uploads only the resources those changes touch."""
         flags = set()
+        moves_only = True            # only objects moved: the direct light restarts locally
         edited, materials, images = set(), set(), False   # for the staleness check's re-hashing
         meshes, unsure = set(), False                      # for the extraction cache
         for u in depsgraph.updates:
             ident = u.id
+            moves_only = moves_only and isinstance(ident, bpy.types.Object) \
+                and ident.type != 'LIGHT' and u.is_updated_transform \
+                and not u.is_updated_geometry and not u.is_updated_shading
             if isinstance(ident, bpy.types.Object):
                 if u.is_updated_transform:
                     flags.add("light" if ident.type == 'LIGHT' else "transform")
@@ -662,7 +672,9 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         self._state.stale.mark(edited, materials, images)
         extraction(self._state).mark(edited, meshes, materials, images, unsure)
         if len(depsgraph.updates):
-            self._state.epoch += 1     # what was drawn may have changed: direct light again
+            self._state.epoch += 1     # what was drawn may have changed
+            if not moves_only:         # the direct light again (a move: where it reaches,
+                self._state.direct_epoch += 1    # direct_light.Progressive)
         LAST_VIEW_UPDATE["flags"] = sorted(flags)
         LAST_VIEW_UPDATE["count"] = LAST_VIEW_UPDATE.get("count", 0) + 1
         if flags:
@@ -699,7 +711,8 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             # converged and nothing changed since: its Combined again, no pass run (a still
             # viewport's redraws, from the UI around it, cost a refining frame before)
             tex, stale = st.still[1], st.still[2]
-            LAST_RENDER.update(pixel_size=ps, reused_frame=True, direct_part=None)
+            LAST_RENDER.update(pixel_size=ps, reused_frame=True, direct_part=None,
+                               direct_restart=None)
             self._draw_texture(scene, tex, w, h)
             if stale:
                 self._draw_stale(stale, w, h, 0)

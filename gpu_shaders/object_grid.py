@@ -234,7 +234,9 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     """The grid texture's texels for the object table `objects` [n, OBJECT_TEXELS, 4];
     returns (texels float32 [rows, width, 4], info dict: dims, cell, margin, entries, overflow
     (cells running the full loop), truncated (crowded cells keeping their nearest), the cap used,
-    mean / max count, `lists` (GridLists, for the next call's `previous`), `incremental`).
+    mean / max count, `lists` (GridLists, for the next call's `previous`), `incremental`,
+    `region`: where sdf_scene's values may differ from `previous`'s build, [(lo, hi)] or []
+    (nothing changed), None when it is not known (a full build): everywhere).
 
     Two levels: a coarse grid (at most grid_max cells per axis) finds each cell's candidates
     within the reach and its bound B; where that grid has at most fine_cells / 8 cells (a flat
@@ -253,10 +255,13 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     lay = _layout(objects, grid_max, fine_cells)
     split, fdims = lay["split"], lay["fdims"]
     incremental = previous is not None and boxes is not None and previous.key == lay["key"]
+    region = None
     if incremental and not len(boxes):
         cells, insts, dists, bound = previous.cells, previous.insts, previous.dists, previous.bound
+        region = []
     elif incremental:
         box = _coarse_box(lay, boxes)
+        region = [_region(lay, box)]
         cells, insts, dists, bound_new = _fine_lists(lay, box)
         cells, insts, dists = _sorted(cells, insts, dists)
         redone = _in_box(np.arange(len(bound_new)), fdims, split, box)     # per fine cell
@@ -273,8 +278,19 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     lists = GridLists(lay["key"], cells, insts, dists, bound)
     texels, info = _pack(lay, cells, insts, dists, bound, len(objects), cap,
                          width, entry_budget)
-    info.update(lists=lists, incremental=bool(incremental))
+    info.update(lists=lists, incremental=bool(incremental), region=region)
     return texels, info
+
+
+def _region(lay: dict, box) -> tuple:
+    """The world box (lo, hi) of coarse index box `box` (inclusive), unbounded on the sides
+    where it reaches the grid's faces (a sample outside the grid reads the cell it clamps into):
+    where sdf_scene's values may differ from the last build's."""
+    lo, cell, dims = lay["lo"], lay["cell"], lay["dims"]
+    a, b = np.asarray(box[0]), np.asarray(box[1])
+    wlo = np.where(a <= 0, -FAR, lo + a * cell)
+    whi = np.where(b >= dims - 1, FAR, lo + (b + 1) * cell)
+    return wlo.astype(np.float64), whi.astype(np.float64)
 
 
 def _sorted(cells, insts, dists) -> tuple:

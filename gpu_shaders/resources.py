@@ -124,6 +124,7 @@ class SceneResources:
         # only the cells near what changed are measured again (the same texels as a full build)
         previous = getattr(self, "grid_info", {}).get("lists")
         texels, self.grid_info = build_object_grid(rows, previous=previous, boxes=boxes)
+        self._log_region(self.grid_info["region"])
         self.grid_shape = texels.shape
         self.grid = gpu.types.GPUTexture((texels.shape[1], texels.shape[0]), format='RGBA32F',
                                          data=float_buffer(texels))
@@ -144,6 +145,27 @@ class SceneResources:
             return
         self.objects_version += 1
         self.changes = (self.changes + [(self.objects_version, boxes)])[-self.CHANGE_LOG:]
+
+    def _log_region(self, region):
+        """Record where the new object grid's sdf_scene values may differ from the last one's
+        (object_grid.build_object_grid's `region`), for objects_version."""
+        if not hasattr(self, "regions"):
+            self.regions = []
+            return
+        self.regions = (self.regions + [(self.objects_version, region)])[-self.CHANGE_LOG:]
+
+    def regions_since(self, version: int):
+        """The world boxes outside which sdf_scene returns the same values as it did at
+        object-table version `version` (boxes unbounded on some sides), or None when that is not
+        known: then anywhere. Why: a pass that keeps results traced through the scene SDF (the
+        viewport's progressive direct light) needs to redo only the rays that pass through
+        them."""
+        if version == self.objects_version:
+            return []
+        later = [r for v, r in self.regions if v > version]
+        if len(later) != self.objects_version - version or any(r is None for r in later):
+            return None
+        return [box for r in later for box in r]
 
     def boxes_since(self, version: int):
         """The world boxes (lo, hi) that changed after object-table version `version`, or None

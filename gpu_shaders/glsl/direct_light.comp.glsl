@@ -13,9 +13,12 @@
  * + 268435456 * transparent (Film > Transparent: the background rgba 0): samples per light,
  * and the part of them and of the sky cones this dispatch evaluates (first 0, take light_samples:
  * all; one int keeps the push constants within 128 bytes); mode 1 also stores the one-sample
- * lights' (suns, lights without radius: light_single) E in single_out, mode 2 reads it from
- * single_in instead of evaluating them again (the viewport's later parts: every part of such a
- * light is the whole light, direct_light.Progressive).
+ * lights' (suns, lights without radius: light_single) E in `single`, mode 2 reads it from there
+ * instead of evaluating them again (the viewport's later parts: every part of such a light is
+ * the whole light, direct_light.Progressive). Mode 3, the viewport: each pixel its own part,
+ * from parts_in (the parts its running mean holds: direct_restart.comp.glsl): part c takes
+ * `take` samples from c * take on, stores the one-sample lights' E at c = 0 and reads it after;
+ * a pixel with `first` (there: the parts of a whole mean) or more writes nothing.
  * Outputs (RGBA32F):
  *   direct_out:   Cycles' "Diffuse Direct" convention: E / pi, E the direct irradiance from the
  *                 lights and the sky (a Lambert BSDF without its albedo); 0 on the background
@@ -28,24 +31,14 @@
  * the sky has in its direction (sky_ray), so a bright zenith blocked by a roof darkens more than
  * the same cone toward a dark horizon.
  */
-/* Cone i of `cones`: Fibonacci points on the disk, lifted to the hemisphere (cosine
- * distributed) around n (tangents u, v). */
-vec3 sky_cone_dir(int i, int cones, vec3 n, vec3 u, vec3 v)
-{
-  float r = sqrt((float(i) + 0.5) / float(cones));
-  float phi = float(i) * 2.39996323;
-  return normalize(u * (r * cos(phi)) + v * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - r * r)));
-}
-
 vec3 sky_light(vec3 p, vec3 n, int cones, int first, int take)
 {
   vec3 E = sky_irradiance(n);
   if (!any(greaterThan(E, vec3(0.0)))) {
     return vec3(0.0);
   }
-  vec3 a = abs(n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
-  vec3 u = normalize(cross(n, a));
-  vec3 v = cross(n, u);
+  vec3 u, v;
+  sky_cone_basis(n, u, v);
   vec3 seen = vec3(0.0);
   vec3 all_ = vec3(0.0);
   float voxel;
@@ -68,8 +61,8 @@ vec3 sky_light(vec3 p, vec3 n, int cones, int first, int take)
      * elevation) the plane reads k sin(e) >= 1, and a convex surface more. With k = 2 for every
      * cone from the surface a sphere under a uniform sky lost 20% of it. */
     float elev_sin = max(dot(dir, n), 0.05);
-    float k = max(2.0, 1.0 / elev_sin);
-    seen += L * cone_visibility_shell(p, n, dir, 3.0, k, THIN_VOXELS * voxel / elev_sin);
+    seen += L * cone_visibility_shell(p, n, dir, SKY_CONE_REACH, sky_cone_k(dir, n),
+                                      THIN_VOXELS * voxel / elev_sin);
   }
   return E * seen * (float(cones) / float(n_take)) / all_;
 }
@@ -80,6 +73,18 @@ void main()
   ivec2 size = imageSize(direct_out);
   if (px.x >= size.x || px.y >= size.y) {
     return;
+  }
+  int light_samples = sample_plan % 256;
+  int sample_first = (sample_plan / 256) % 256;
+  int sample_take = (sample_plan / 65536) % 256;
+  int mode = (sample_plan / 16777216) % 16;
+  if (mode == 3) {
+    int c = int(texelFetch(parts_in, px, 0).r + 0.5);
+    if (c >= sample_first) {
+      return;                        /* its mean is whole */
+    }
+    sample_first = c * sample_take;
+    mode = c == 0 ? 1 : 2;
   }
   vec4 pos = texelFetch(gbuf_position, px, 0);
   if (pos.w < 0.5) {
@@ -97,10 +102,6 @@ void main()
   if (dot(n, cam_pos - p) < 0.0) {
     n = -n; /* back face: shade the side the camera sees, as Cycles does */
   }
-  int light_samples = sample_plan % 256;
-  int sample_first = (sample_plan / 256) % 256;
-  int sample_take = (sample_plan / 65536) % 256;
-  int mode = (sample_plan / 16777216) % 16;
   vec3 E = vec3(0.0);
   vec3 E_single = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
@@ -114,10 +115,10 @@ void main()
     E_single += single ? e : vec3(0.0);
   }
   if (mode == 1) {
-    imageStore(single_out, px, vec4(E_single, 1.0));
+    imageStore(single, px, vec4(E_single, 1.0));
   }
   else if (mode == 2) {
-    E += texelFetch(single_in, px, 0).rgb;
+    E += imageLoad(single, px).rgb;
   }
   if (sky_cones > 0) {
     E += sky_light(p, n, sky_cones, sample_first, sample_take);

@@ -17,6 +17,7 @@
  */
 #define PI 3.14159265358979
 #define SHADOW_STEPS 96
+#define LIGHT_SUN_REACH 100.0
 #define SDF_BAND_VOXELS 4.0   /* lumen_addon/sdf.py BAND_VOXELS */
 #define THIN_VOXELS 0.5   /* occluders count half a voxel thicker: walls thinner than a voxel block */
 
@@ -127,6 +128,29 @@ float cone_visibility(vec3 p, vec3 n, vec3 dir, float t_max, float k)
   return cone_visibility_shell(p, n, dir, t_max, k, 0.0);
 }
 
+/* The direct pass's sky cones (direct_light.comp.glsl: sky_light): cone i of `cones` is a
+ * Fibonacci point on the disk, lifted to the hemisphere (cosine distributed) around n
+ * (tangents u, v from sky_cone_basis), traced SKY_CONE_REACH with k = sky_cone_k. */
+#define SKY_CONE_REACH 3.0
+void sky_cone_basis(vec3 n, out vec3 u, out vec3 v)
+{
+  vec3 a = abs(n.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+  u = normalize(cross(n, a));
+  v = cross(n, u);
+}
+
+vec3 sky_cone_dir(int i, int cones, vec3 n, vec3 u, vec3 v)
+{
+  float r = sqrt((float(i) + 0.5) / float(cones));
+  float phi = float(i) * 2.39996323;
+  return normalize(u * (r * cos(phi)) + v * (r * sin(phi)) + n * sqrt(max(0.0, 1.0 - r * r)));
+}
+
+float sky_cone_k(vec3 dir, vec3 n)
+{
+  return max(2.0, 1.0 / max(dot(dir, n), 0.05));
+}
+
 /* A per-pixel rotation in [0,1)^2 for the light samples (integer hash of the pixel). */
 vec2 light_rotation(ivec2 px)
 {
@@ -146,12 +170,55 @@ vec2 light_rotation(ivec2 px)
  * where one cone over the whole light darkens from the edge outwards only. */
 vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int first, int take);
 
+/* Where a cone towards a light sample `dist` away with a share of radius `sub` ends (what is
+ * right behind the light casts nothing), and its k. */
+float light_reach(float dist, float sub)
+{
+  return max(dist - sub, 0.5 * dist);
+}
+
+float light_k(float dist, float sub)
+{
+  return clamp(dist / max(sub, 1e-3), 2.0, 256.0);
+}
+
+/* A sun's k (its disk's half angle in t1.w). */
+float light_sun_k(vec4 t1)
+{
+  return clamp(1.0 / max(tan(0.5 * t1.w), 1e-3), 2.0, 256.0);
+}
+
 /* true for a light whose every part is the whole light (a sun, a light without radius): the
  * viewport's progressive direct light evaluates it once, not once per part */
 bool light_single(int i)
 {
   vec4 t0 = light_texel(i, 0);
   return int(t0.x + 0.5) == 0 || light_texel(i, 1).w <= 0.005;
+}
+
+/* Sample point s of `count` on light i's disk (centre, radius r: facing p for point and spot
+ * lights, the area light's own plane), rotated by rot: the points light_irradiance_part shades
+ * and the viewport's restart test (direct_restart.comp.glsl) follows. */
+vec3 light_point(int i, vec3 p, int s, int count, vec2 rot)
+{
+  vec4 t0 = light_texel(i, 0);
+  vec4 t1 = light_texel(i, 1);
+  vec3 centre = t0.yzw;
+  float r = t1.w;
+  vec3 axis = int(t0.x + 0.5) == 3 ? t1.xyz : (centre - p) / max(length(centre - p), 1e-6);
+  vec3 a = abs(axis.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+  vec3 bu = normalize(cross(axis, a));
+  vec3 bv = cross(axis, bu);
+  vec2 u = fract(vec2((float(s) + 0.5) / float(count), float(s) * 0.618033988749895) + rot);
+  float rr = count > 1 ? r * sqrt(u.x) : 0.0;
+  float phi = 6.28318530717958648 * u.y;
+  return centre + rr * (cos(phi) * bu + sin(phi) * bv);
+}
+
+/* Samples light i takes (1 for a light without radius). */
+int light_count_of(int i, int samples)
+{
+  return light_texel(i, 1).w > 0.005 ? max(samples, 1) : 1;
 }
 
 vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
@@ -177,26 +244,16 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int fir
     if (cos_s <= 0.0) {
       return vec3(0.0);
     }
-    float k = clamp(1.0 / max(tan(0.5 * t1.w), 1e-3), 2.0, 256.0);
-    return t2.rgb * cos_s * (t2.w > 0.5 ? 1.0 : cone_visibility(p, n, L, 100.0, k));
+    return t2.rgb * cos_s * (t2.w > 0.5 ? 1.0 : cone_visibility(p, n, L, LIGHT_SUN_REACH,
+                                                                light_sun_k(t1)));
   }
-  vec3 centre = t0.yzw;
   float r = t1.w;
-  float dist_c = length(centre - p);
-  int count = r > 0.005 ? max(samples, 1) : 1;
-  vec3 axis = type == 3 ? t1.xyz : (centre - p) / max(dist_c, 1e-6);
-  vec3 a = abs(axis.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
-  vec3 bu = normalize(cross(axis, a));
-  vec3 bv = cross(axis, bu);
+  int count = light_count_of(i, samples);
   float sub = r / sqrt(float(count));            /* radius of each sample's share of the light */
   vec3 sum = vec3(0.0);
   int n_take = clamp(take, 1, count);
   for (int j = 0; j < n_take; j++) {
-    int s = (first + j) % count;
-    vec2 u = fract(vec2((float(s) + 0.5) / float(count), float(s) * 0.618033988749895) + rot);
-    float rr = count > 1 ? r * sqrt(u.x) : 0.0;
-    float phi = 6.28318530717958648 * u.y;
-    vec3 q = centre + rr * (cos(phi) * bu + sin(phi) * bv);
+    vec3 q = light_point(i, p, (first + j) % count, count, rot);
     vec3 to = q - p;
     float dist = length(to);
     vec3 L = to / max(dist, 1e-6);
@@ -221,8 +278,8 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int fir
     }
     /* the cone stops where the light begins: what is right behind it (the ceiling an area
      * light hangs under) casts nothing */
-    float reach = max(dist - sub, 0.5 * dist);
-    float k = clamp(dist / max(sub, 1e-3), 2.0, 256.0);
+    float reach = light_reach(dist, sub);
+    float k = light_k(dist, sub);
     sum += E * cos_s * (t2.w > 0.5 ? 1.0 : cone_visibility(p, n, L, reach, k));  /* w: no shadow */
   }
   return sum / float(n_take);

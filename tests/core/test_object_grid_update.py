@@ -56,8 +56,9 @@ def test_incremental_grid_equals_a_full_build(cap):
         full, full_info = build_object_grid(new, cap=cap)
         assert info["incremental"]
         np.testing.assert_array_equal(texels, full)
-        assert {k: v for k, v in info.items() if k not in ("lists", "incremental")} == \
-            {k: v for k, v in full_info.items() if k not in ("lists", "incremental")}
+        skip = ("lists", "incremental", "region")
+        assert {k: v for k, v in info.items() if k not in skip} == \
+            {k: v for k, v in full_info.items() if k not in skip}
         rows, done = new, done + 1
     assert done == 5
     if cap == 3:
@@ -66,7 +67,7 @@ def test_incremental_grid_equals_a_full_build(cap):
     # nothing changed: the same texels from the kept lists
     same, info2 = build_object_grid(rows, cap=cap, previous=info["lists"],
                                     boxes=changed_boxes(rows, rows, 256))
-    assert info2["incremental"]
+    assert info2["incremental"] and info2["region"] == []
     np.testing.assert_array_equal(same, build_object_grid(rows, cap=cap)[0])
 
 
@@ -78,8 +79,57 @@ def test_a_move_that_grows_the_grid_builds_it_all():
     new[5] = _row(rng, (14.0, 0.0, 0.5), (0.2, 0.2, 0.2), 0.05)          # beyond the floor
     texels, info = build_object_grid(new, previous=info["lists"],
                                      boxes=changed_boxes(rows, new, 256))
-    assert not info["incremental"]
+    assert not info["incremental"] and info["region"] is None
     np.testing.assert_array_equal(texels, build_object_grid(new)[0])
     # too many rows changed, or the table's size: everything (None)
     assert changed_boxes(rows, _move(rng, rows, 40), 16) is None
     assert changed_boxes(rows, rows[:-1], 256) is None
+
+
+def _cell_contents(texels):
+    """Per fine cell of a grid texture: its world centre, (count, B), and its list entries as
+    (cell, instance, distance) rows sorted (first list texels differ between builds)."""
+    tex = np.asarray(texels, np.float64).reshape(-1, 4)
+    lo, cell = tex[0, :3], tex[0, 3]
+    dims = np.floor(tex[1, :3] + 0.5).astype(np.int64)
+    first_list = int(tex[1, 3])
+    n = int(dims.prod())
+    ct = tex[3:3 + n]
+    idx = np.arange(n)
+    xyz = np.stack([idx % dims[0], (idx // dims[0]) % dims[1], idx // (dims[0] * dims[1])], 1)
+    centre = lo + (xyz + 0.5) * cell
+    counts = np.maximum(np.round(ct[:, 1]).astype(np.int64), 0)
+    pairs = tex[first_list:].reshape(-1, 2)
+    owner = np.repeat(idx, counts)
+    start = np.round(ct[:, 0]).astype(np.int64)
+    entry = start[owner] + (np.arange(len(owner)) - np.repeat(np.cumsum(counts) - counts, counts))
+    rows = np.column_stack([owner, pairs[entry]])
+    return centre, ct[:, 1:3], rows[np.lexsort(rows.T[::-1])]
+
+
+def test_values_change_only_inside_the_region():
+    """build_object_grid's `region` (what the viewport's direct light restarts from): outside it
+    every cell lists the same instances at the same distances with the same bound B, so
+    sdf_scene returns there what it did before the move, and no moved row is listed there."""
+    rng = np.random.default_rng(11)
+    rows = _scene(rng, 200)
+    texels, info = build_object_grid(rows)
+    for k in (1, 2):
+        new = _move(rng, rows, k, step=0.8)
+        moved = np.flatnonzero((new != rows).reshape(len(rows), -1).any(axis=1))
+        new_texels, new_info = build_object_grid(new, previous=info["lists"],
+                                                 boxes=changed_boxes(rows, new, 256))
+        (lo, hi), = new_info["region"]
+        centre, cb, entries = _cell_contents(texels)
+        _, new_cb, new_entries = _cell_contents(new_texels)
+        out = ~np.all((centre > lo) & (centre < hi), axis=1)
+        assert 0.2 < out.mean() < 1.0          # the region is neither everything nor nothing
+        np.testing.assert_array_equal(cb[out], new_cb[out])
+        keep = out[entries[:, 0].astype(np.int64)]
+        new_keep = out[new_entries[:, 0].astype(np.int64)]
+        np.testing.assert_array_equal(entries[keep], new_entries[new_keep])
+        assert not np.isin(new_entries[new_keep, 1], moved).any()
+        # and inside it something did change (else the test shows nothing)
+        assert not np.array_equal(cb[~out], new_cb[~out]) or \
+            not np.array_equal(entries[~keep], new_entries[~new_keep])
+        rows, texels, info = new, new_texels, new_info
