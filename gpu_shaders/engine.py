@@ -316,7 +316,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         if changes - {"objects"}:     # moved objects restart only the pixels they reach
             state.direct_epoch += 1
         key = (np.asarray(view_proj, np.float64).tobytes(), width, height, sky_cones,
-               state.direct_epoch, sky.key)
+               state.direct_epoch, sky.key, sky.film_alpha)
         out = state.direct.shade(key, res, gbuf, state.lights, sky, cam_pos, inv_vp, width,
                                  height, sky_cones, state.light_texture)
     t4 = time.perf_counter()
@@ -634,14 +634,19 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         """Record what the depsgraph says changed; the next view_draw's frame() syncs the scene
         state, which re-uploads only the resources those changes touch."""
         flags = set()
-        moves_only = True            # only objects moved: the direct light restarts locally
+        moves_only = True            # only objects moved (or the selection changed): the
+                                     # direct light restarts locally (or not at all)
         edited, materials, images = set(), set(), False   # for the staleness check's re-hashing
         meshes, unsure = set(), False                      # for the extraction cache
         for u in depsgraph.updates:
             ident = u.id
-            moves_only = moves_only and isinstance(ident, bpy.types.Object) \
-                and ident.type != 'LIGHT' and u.is_updated_transform \
-                and not u.is_updated_geometry and not u.is_updated_shading
+            # (a selection click updates the Scene alone, with no flag: the direct pass's
+            # scene settings are in its key, direct_light.Progressive)
+            moves_only = moves_only and not u.is_updated_geometry \
+                and not u.is_updated_shading and (
+                    isinstance(ident, bpy.types.Scene) and not u.is_updated_transform
+                    or isinstance(ident, bpy.types.Object) and ident.type != 'LIGHT'
+                    and u.is_updated_transform)
             if isinstance(ident, bpy.types.Object):
                 if u.is_updated_transform:
                     flags.add("light" if ident.type == 'LIGHT' else "transform")

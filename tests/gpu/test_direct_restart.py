@@ -2,7 +2,8 @@
 the move reaches (direct_light.Progressive, glsl/direct_restart.comp.glsl): the G-buffer pixels
 that changed and those whose shadow rays pass where the scene SDF changed. Its converged image
 must be the one a fresh viewport computes for the moved scene (a pixel left out would keep its
-old shadow), and the restart must leave most of the view as it was."""
+old shadow), and the restart must leave most of the view as it was. A selection click restarts
+nothing; Film > Transparent, every pixel."""
 import sys
 from pathlib import Path
 
@@ -59,10 +60,15 @@ def case(tag):
         log.append(R.get("direct_restart"))
         np.save(f"{{tag}}_direct_{{i}}.npy", R["direct"])
         np.save(f"{{tag}}_parts_{{i}}.npy", R["direct_parts"])
+        if i == 2:
+            boxes[0].select_set(True)         # a selection click: no restart
         if i == frames:
             boxes[-1].location.x += 0.6     # the middle box moves (its shadows with it)
-    viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 2 * frames + 2,
+        if i == 2 * frames + 1:
+            scene.render.film_transparent = not scene.render.film_transparent   # all again
+    viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 2 * frames + 3,
                          redraw)
+    scene.render.film_transparent = False
     def fresh_redraw(i):
         np.save(f"{{tag}}_fresh_{{i}}.npy", engine.LAST_RENDER["direct"])
     viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, frames + 1,
@@ -84,6 +90,7 @@ def test_a_move_restarts_only_the_pixels_it_reaches(tmp_path):
     for tag, log in run.result["logs"].items():
         assert log[0] == "full" and log[1:frames + 1] == [None] * frames, (tag, log)
         assert log[frames + 1] == "local", (tag, log)      # the redraw after the move
+        assert log[2 * frames + 2] == "full", (tag, log)   # Film > Transparent toggled
         load = lambda name: np.load(tmp_path / f"{tag}_{name}.npy")[..., :3]   # noqa: E731
         before = load(f"direct_{frames}")
         first = load(f"direct_{frames + 1}")
