@@ -192,10 +192,18 @@ def singular(matrix_world) -> bool:
     """True for a transform the SDF scene cannot invert: non-finite, or a 3x3 part with a zero
     (or nearly zero) scale, e.g. an object scaled to 0 (Blender draws nothing for it)."""
     mw = np.asarray(matrix_world, np.float64)
-    if mw.shape != (4, 4) or not np.isfinite(mw).all():
+    if mw.shape != (4, 4):
         return True
-    s = np.linalg.svd(mw[:3, :3], compute_uv=False)
-    return bool(s.min() <= 1e-9 * max(s.max(), 1e-30))
+    return bool(singular_many(mw[None])[0])
+
+
+def singular_many(matrices) -> np.ndarray:
+    """singular() of every matrix of float [n, 4, 4] at once (bool [n]): one batched SVD, not one
+    per instance (a sync among 1,000 objects spent 15 ms on the loop)."""
+    mw = np.asarray(matrices, np.float64).reshape(-1, 4, 4)
+    bad = ~np.isfinite(mw).all(axis=(1, 2))
+    s = np.linalg.svd(np.where(bad[:, None, None], 0.0, mw)[:, :3, :3], compute_uv=False)
+    return bad | (s.min(axis=1) <= 1e-9 * np.maximum(s.max(axis=1), 1e-30))
 
 
 def instance_row(sdf, matrix_world, indirection_offset: int, mip: int = 0) -> np.ndarray:

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .packing import instance_row, singular
+from .packing import instance_row, singular_many
 from .sky_light import SkyLight
 
 try:                                   # inside the extension package
@@ -162,7 +162,8 @@ class SceneState:
         self.mesh_keys = frozenset(keys)
         # instances whose transform cannot be inverted (scale 0): parked, named in the notes
         self.gone = [n for n in names if n not in matrices]
-        self.left_out = [n for n, m in zip(names, mats) if n in matrices and singular(m)]
+        cut = singular_many(mats) if len(names) else np.zeros(0, bool)
+        self.left_out = [names[i] for i in np.flatnonzero(cut) if names[i] in matrices]
         for name in changes:
             self.uploads[name] += 1
         self.syncs += 1
