@@ -280,7 +280,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                        stale_hashed=state.stale.hashed, stale_seconds=stale_seconds)
     if state.extraction is not None:
         LAST_RENDER.update(meshes_read=state.extraction.reads,
-                           meshes_read_total=state.extraction.reads_total)
+                           meshes_read_total=state.extraction.reads_total,
+                           extraction_walked=state.extraction.walked)
     if view in TRACE_VIEWS:
         inv_vp = np.linalg.inv(np.asarray(view_proj, np.float64))
         if view == "HYBRID":
@@ -636,6 +637,8 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         flags = set()
         moves_only = True            # only objects moved (or the selection changed): the
                                      # direct light restarts locally (or not at all)
+        moved = set()                # objects that only moved, none an instancer: the
+                                     # extraction reads their matrices without a walk
         edited, materials, images = set(), set(), False   # for the staleness check's re-hashing
         meshes, unsure = set(), False                      # for the extraction cache
         for u in depsgraph.updates:
@@ -647,6 +650,13 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
                     isinstance(ident, bpy.types.Scene) and not u.is_updated_transform
                     or isinstance(ident, bpy.types.Object) and ident.type != 'LIGHT'
                     and u.is_updated_transform)
+            if moved is not None and isinstance(ident, bpy.types.Object) \
+                    and ident.type != 'LIGHT' and u.is_updated_transform \
+                    and not u.is_updated_geometry and not u.is_updated_shading \
+                    and not ident.is_instancer:
+                moved.add(ident.name)
+            else:
+                moved = None
             if isinstance(ident, bpy.types.Object):
                 if u.is_updated_transform:
                     flags.add("light" if ident.type == 'LIGHT' else "transform")
@@ -675,7 +685,10 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         if getattr(self, "_state", None) is None:
             self._state = SceneState()
         self._state.stale.mark(edited, materials, images)
-        extraction(self._state).mark(edited, meshes, materials, images, unsure)
+        if moved:
+            extraction(self._state).mark_moved(moved)
+        else:
+            extraction(self._state).mark(edited, meshes, materials, images, unsure)
         if len(depsgraph.updates):
             self._state.epoch += 1     # what was drawn may have changed
             if not moves_only:         # the direct light again (a move: where it reaches,

@@ -61,6 +61,7 @@ def step(i):
         read=R["meshes_read"], built=R["gbuffer_batches_built"],
         table=R["instance_table_uploaded"], draws=R["gbuffer_draws"], stale=R["stale"],
         reused=R["gbuffer_reused"], frame_reused=R["reused_frame"],
+        walked=R["extraction_walked"],
         pos={{k: at(R["position"], *p) for k, p in PROBES.items()}},
         alb={{k: at(R["albedo"], *p) for k, p in PROBES.items()}})
     label = LABELS[i]
@@ -105,9 +106,12 @@ def test_viewport_frames_follow_the_depsgraph(tmp_path):
     assert first["read"] == 3 and first["built"] == 3 and first["table"]
     assert close(first["alb"]["box"], red) and close(first["pos"]["box"][2], 0.8)
     assert close(first["alb"]["box_moved"], grey) and close(first["pos"]["box_moved"][2], 0.0)
-    # a moved object: nothing read or built, the instance table re-uploaded
+    # a moved object: nothing read or built, the instance table re-uploaded, and no walk over
+    # the instances (only its matrix read: ExtractionCache.mark_moved); every other edit walks
     moved = f["moved"]
     assert moved["read"] == 0 and moved["built"] == 0 and moved["table"]
+    assert not moved["walked"] and all(f[k]["walked"] for k in list(f)[2:-1]), \
+        {k: f[k]["walked"] for k in f}
     assert close(moved["alb"]["box"], grey) and close(moved["pos"]["box"][2], 0.0)
     assert close(moved["alb"]["box_moved"], red) and close(moved["pos"]["box_moved"][2], 0.8)
     # a moved vertex: that mesh alone is read again
@@ -193,6 +197,7 @@ def step(i):
         normal=float(np.abs(R["normal"] - ref["normal"])[both, :3].max()),
         albedo=float(np.abs(R["albedo"] - ref["albedo"])[both, :3].max()),
         changed=int((np.abs(R["position"] - out[-1]["pos"]).max(-1) > 0.05).sum()) if out else 0,
+        walked=R["extraction_walked"],
         pos=R["position"].copy()))
     if i == 0:
         first.location.x += 0.3                      # move a whole collection instance
@@ -217,4 +222,5 @@ def test_instanced_gbuffer_equals_the_world_space_one(tmp_path):
         assert fr["position"] < 1e-4 and fr["normal"] < 1e-3 and fr["albedo"] < 1e-6
     assert frames[0]["draws"] == 4 and frames[1]["read"] == 0     # plane, ico, part, Solo
     assert frames[1]["changed"] > 20                                 # the instance moved
+    assert frames[1]["walked"]            # an instancer moved: its instances walked again
 
