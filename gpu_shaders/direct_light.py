@@ -38,7 +38,7 @@ ACCUMULATE = compute.Pass("direct_accumulate", samplers=("new_direct", "new_comb
                           push=(('INT', 'frames'),))
 RESTART = compute.Pass("direct_restart",
                        samplers=tuple("gbuf_" + n for n in ATTACHMENTS) + ("lights", "regions"),
-                       images=(("signature", 'RGBA32F', {'READ', 'WRITE'}),
+                       images=(("signature", 'R32I', {'READ', 'WRITE'}),
                                ("parts", 'R32F', {'READ', 'WRITE'})),
                        push=(('VEC3', 'cam_pos'), ('INT', 'light_count'), ('INT', 'region_count'),
                              ('INT', 'sky_cones'), ('INT', 'full'), ('INT', 'light_samples')))
@@ -120,7 +120,7 @@ class Progressive:
         self.combined = None
         self.single = None       # RGBA32F: the one-sample lights' E, from each pixel's part 0
         self.parts = None        # R32F: parts in each pixel's mean (FRAMES: whole)
-        self.signature = None    # RGBA32F: the G-buffer each pixel was shaded from
+        self.signature = None    # R32I: a hash of the G-buffer each pixel was shaded from
         self.pending = 0         # redraws that may still have parts to run (0: converged)
         self.step = 0            # parts run since the last restart (the restarted pixels' part)
         self.traced = None       # (weakref to the SceneResources, objects_version) traced in
@@ -132,6 +132,14 @@ class Progressive:
     @property
     def converged(self) -> bool:
         return self.pending <= 0
+
+    def stats(self) -> dict:
+        """GPU bytes of its kept textures: the two means and the one-sample lights' E (RGBA32F),
+        the parts and the signatures (4 bytes a pixel each)."""
+        if self.size is None:
+            return {}
+        px = self.size[0] * self.size[1]
+        return {"screen_direct_progressive": px * (16 * 3 + 4 + 4)}
 
     def _regions(self, resources):
         """Where the scene SDF changed since the pixels were traced ([] nothing, None unknown)."""
@@ -170,9 +178,10 @@ class Progressive:
         self.last_restart = None
         if (width, height) != self.size:
             self.size = (width, height)
-            self.direct, self.combined, self.single, self.signature = (
-                gpu.types.GPUTexture((width, height), format='RGBA32F') for _ in range(4))
+            self.direct, self.combined, self.single = (
+                gpu.types.GPUTexture((width, height), format='RGBA32F') for _ in range(3))
             self.parts = gpu.types.GPUTexture((width, height), format='R32F')
+            self.signature = gpu.types.GPUTexture((width, height), format='R32I')
             self.key = None
         regions = self._regions(resources)
         position = gbuf["textures"]["position"]

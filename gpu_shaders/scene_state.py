@@ -258,6 +258,8 @@ class SceneState:
             out.update(self.voxel_lighting.stats())
         if self.mesh_batches is not None:
             out.update(self.mesh_batches.stats())
+        if self.direct is not None:
+            out.update(self.direct.stats())
         if self.radiance_cache is not None:
             out.update(self.radiance_cache.stats())
         if self.screen_trace is not None:

@@ -133,11 +133,12 @@ def stale_lines(scene, limit: int = 5) -> list:
 
 
 # Resource-name prefix (engine MEMORY keys) -> the stage the Debug panel sums it under; the
-# rest are the mesh SDFs. LPV, VXGI and the radiance cache are being built on other branches.
+# rest are the mesh SDFs.
 MEMORY_STAGES = (("cards_", "Cards"), ("global_sdf", "Global SDF"), ("screen_", "Screen targets"),
                  ("probes_", "Screen probes"), ("lights", "Lights"), ("sky", "Sky"),
                  ("voxel_lighting", "Voxel lighting"), ("ssgi_", "SSGI"), ("rsm_", "RSM"),
-                 ("lpv_", "LPV"), ("vxgi_", "VXGI"), ("radiance_cache", "Radiance cache"))
+                 ("lpv_", "LPV"), ("vxgi_", "VXGI"), ("radiance_cache", "Radiance cache"),
+                 ("gbuffer_", "G-buffer meshes"))
 
 
 def draw_memory(layout, scene):

@@ -6,9 +6,9 @@
  * boxes outside which the scene SDF returns what it did when the pixels' shadows were traced:
  * SceneResources.regions_since), push constants cam_pos, light_count, region_count, sky_cones,
  * full (1: every pixel starts again), light_samples (direct_light.LIGHT_SAMPLES).
- * Read and written: signature (the G-buffer the pixel was shaded from: position, and a hash of
- * its normal, albedo and emission), parts (the parts of the pixel's running mean, 0 to start
- * again).
+ * Read and written: signature (R32I: a 32-bit hash of the G-buffer the pixel was shaded from,
+ * its position, normal, albedo and emission; 4 bytes a pixel, where the texels themselves took
+ * 16), parts (the parts of the pixel's running mean, 0 to start again).
  *
  * A pixel starts again where its G-buffer differs, or where a cone the direct pass traces from
  * it may sample inside a region (sdf_scene is sampled only on a cone's axis): each light's
@@ -117,6 +117,31 @@ bool shadows_meet_regions(vec3 p, vec3 n, ivec2 px)
   return false;
 }
 
+/* One 32-bit word mixed into the hash h (a multiply-xorshift avalanche per word). */
+uint signature_mix(uint h, uint w)
+{
+  uint x = h ^ w;
+  x ^= x >> 16u;
+  x *= 0x7feb352du;
+  x ^= x >> 15u;
+  x *= 0x846ca68bu;
+  x ^= x >> 16u;
+  return x + 0x9e3779b9u;
+}
+
+uint signature_of(vec4 pos, vec3 n, vec3 albedo, vec3 emission)
+{
+  uvec4 a = floatBitsToUint(pos);
+  uvec3 b = floatBitsToUint(n);
+  uvec3 c = floatBitsToUint(albedo);
+  uvec3 d = floatBitsToUint(emission);
+  uint h = 0x2545f491u;
+  h = signature_mix(signature_mix(signature_mix(signature_mix(h, a.x), a.y), a.z), a.w);
+  h = signature_mix(signature_mix(signature_mix(h, b.x), b.y), b.z);
+  h = signature_mix(signature_mix(signature_mix(h, c.x), c.y), c.z);
+  return signature_mix(signature_mix(signature_mix(h, d.x), d.y), d.z);
+}
+
 void main()
 {
   ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -128,9 +153,8 @@ void main()
   vec3 n = texelFetch(gbuf_normal, px, 0).xyz;
   vec3 albedo = texelFetch(gbuf_albedo, px, 0).rgb;
   vec3 emission = texelFetch(gbuf_emission, px, 0).rgb;
-  vec4 sig = vec4(pos.xyz, pos.w + dot(n, vec3(2.0, 7.0, 19.0)) + dot(albedo, vec3(37.0, 61.0, 89.0))
-                              + dot(emission, vec3(131.0, 173.0, 229.0)));
-  bool again = full != 0 || any(notEqual(sig, imageLoad(signature, px)));
+  int sig = int(signature_of(pos, n, albedo, emission));
+  bool again = full != 0 || sig != imageLoad(signature, px).r;
   if (!again && pos.w >= 0.5 && region_count > 0) {
     vec3 nn = normalize(n);
     if (dot(nn, cam_pos - pos.xyz) < 0.0) {
@@ -141,5 +165,5 @@ void main()
   if (again) {
     imageStore(parts, px, vec4(0.0));
   }
-  imageStore(signature, px, sig);
+  imageStore(signature, px, ivec4(sig));
 }
