@@ -161,6 +161,22 @@ def engine_settings(scene):
     return getattr(getattr(scene, "lumen", None), "engine", None)
 
 
+def settings_key(scene) -> tuple:
+    """The scene settings a kept viewport image depends on (every engine setting, the pixel
+    filter, Film > Transparent, the legacy view property): part of the anti-aliasing's key,
+    which a depsgraph update that changed nothing drawn (a selection click) leaves alone."""
+    eng = engine_settings(scene)
+    values = []
+    if eng is not None:
+        for prop in eng.bl_rna.properties:
+            if prop.identifier != "rna_type":
+                v = getattr(eng, prop.identifier, None)
+                values.append(tuple(v) if hasattr(v, "__len__") and not isinstance(v, str) else v)
+    render = scene.render
+    return (tuple(values), float(getattr(render, "filter_size", 1.5)),
+            bool(getattr(render, "film_transparent", False)), scene.get(VIEW_PROPERTY))
+
+
 def debug_view(scene) -> str:
     view = getattr(engine_settings(scene), "debug_view", "COMBINED")
     if view == "COMBINED" and scene.get(VIEW_PROPERTY) == "DEPTH":
@@ -368,6 +384,8 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                 state.resources, state.global_sdf, state.surface_cache, sky,
                 state.voxel_lighting if gi_cfg.voxel_lighting else None,
                 min(float(clip_end), 100.0), frame=state.gi_frame)
+    if not final and not (gi_info.get("gi_converged", True) and state.direct.converged):
+        state.unsettled += 1          # a refining frame: the anti-aliasing starts again after
     aa_info = {"aa_progress": None}
     if gi_cfg.aa_samples > 1 and view == "COMBINED":
         from . import antialias
@@ -382,8 +400,11 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         elif gi_info.get("gi_converged", True) and state.direct.converged:
             # a still viewport: jittered samples, ending on the F12 image; as many a redraw as
             # fit in the last refining redraw's time (one at least)
-            key = (np.asarray(view_proj, np.float64).tobytes(), width, height, state.epoch,
-                   sky.key, gi_cfg.aa_samples)
+            # what its samples are made of: the view, the world, the settings, the G-buffer's
+            # instances and the frames that refined since (the GI's, the direct light's; the
+            # state's epoch would also count a selection click, which changes none of them)
+            key = (np.asarray(view_proj, np.float64).tobytes(), width, height, sky.key,
+                   settings_key(scene), state.mesh_batches.generation, state.unsettled)
             textures = state.aa.step(key, *aa_args, seconds=state.refine_seconds)
             aa_info = dict(aa_seconds=time.perf_counter() - t_aa, aa_samples=state.aa.done,
                            aa_progress=(state.aa.done, gi_cfg.aa_samples))

@@ -101,6 +101,8 @@ class SceneState:
                                      # time per redraw (antialias.Progressive)
         self.epoch = 0               # depsgraph updates seen (engine.view_update) and syncs
                                      # with changes: what the progressive direct light keys on
+        self.unsettled = 0           # viewport frames whose GI or direct light still refined
+                                     # (engine.frame: the anti-aliasing's key)
         self.direct_epoch = 0        # the same without the updates that only move objects: the
                                      # direct light restarts the pixels a move reaches itself
         self.still = None            # engine.view_draw: (key, Combined, stale) of a converged

@@ -3,7 +3,8 @@ a GPU context, with a GPUOffScreen bound and a duck-typed context (region, regio
 space_data). Checks that redraws of a still view converge to the F12 image of the same camera (its
 anti-aliasing samples included, several a redraw once the rest has converged, at most 4 even
 with a budget that never runs out), that a converged view's further redraws run no pass until
-something changes, that Blender's viewport Pixel Size renders the frame at 1/ps per side and still fills the region,
+something changes (a selection click keeps the anti-aliasing's samples, a new pixel filter does
+not), that Blender's viewport Pixel Size renders the frame at 1/ps per side and still fills the region,
 and that the viewport uses its own GI quality."""
 import sys
 from pathlib import Path
@@ -71,6 +72,21 @@ antialias.Progressive.step = lambda self, *a, **k: step(self, *a, **dict(k, seco
 out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 50, state)
 antialias.Progressive.step = step
 results["gpu_budget"] = out["after"]
+# a converged view: a selection click redraws without starting the anti-aliasing again; a
+# changed pixel filter starts it again
+clicks = {{}}
+def click(i):
+    R = engine.LAST_RENDER
+    d = dict(aa=R.get("aa_progress"), reused=R.get("reused_frame"))
+    if d["reused"] and "select" not in clicks:
+        clicks["select"] = i
+        box.select_set(not box.select_get())
+    elif "select" in clicks and i == clicks["select"] + 3:
+        scene.render.filter_size = 1.2
+    return d
+out = viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 70, click)
+results["click"] = dict(after=out["after"], select=clicks.get("select"))
+scene.render.filter_size = 1.5
 # a moved object and a moved light reach the next redraw of the same viewport (one engine
 # instance, one GPU state: each redraw re-uploads only what changed)
 scene.render.preview_pixel_size = "1"
@@ -137,6 +153,15 @@ def test_view_draw_converges_to_f12_and_honours_pixel_size(tmp_path):
     first_done = next(i for i, d in enumerate(full) if d["converged"] and d["aa"] == [8, 8])
     print("done at redraw", first_done, "reused:", reused)
     assert reused == list(range(first_done + 1, len(full))), (first_done, reused)
+    # a selection click on a converged view: the next redraw runs (the depsgraph changed) but
+    # keeps all the anti-aliasing samples, and the one after is the kept frame again; a new
+    # pixel filter starts the samples again
+    click = res.result["results"]["click"]
+    after, i = click["after"], click["select"]
+    assert i is not None, after
+    assert not after[i + 1]["reused"] and after[i + 1]["aa"] == [8, 8], after[i:i + 4]
+    assert after[i + 2]["reused"], after[i:i + 4]
+    assert after[i + 4]["aa"][0] < 8, after[i + 3:i + 6]
     # an edit is never drawn from before it
     assert not any(res.result["moved_reused"]), res.result["moved_reused"]
 
