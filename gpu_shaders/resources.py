@@ -160,19 +160,19 @@ class SceneResources:
         known: then anywhere. Why: a pass that keeps results traced through the scene SDF (the
         viewport's progressive direct light) needs to redo only the rays that pass through
         them."""
-        if version == self.objects_version:
-            return []
-        later = [r for v, r in self.regions if v > version]
-        if len(later) != self.objects_version - version or any(r is None for r in later):
-            return None
-        return [box for r in later for box in r]
+        return self._since(self.regions, version)
 
     def boxes_since(self, version: int):
         """The world boxes (lo, hi) that changed after object-table version `version`, or None
         when that is unknown (a size change, or older than the log): then everything did."""
+        return self._since(self.changes, version)
+
+    def _since(self, log, version: int):
+        """The boxes a change log ([(version, boxes or None)]) holds after `version`; None where
+        one is None or the log no longer reaches back that far."""
         if version == self.objects_version:
             return []
-        later = [b for v, b in self.changes if v > version]
+        later = [b for v, b in log if v > version]
         if len(later) != self.objects_version - version or any(b is None for b in later):
             return None
         return [box for b in later for box in b]
