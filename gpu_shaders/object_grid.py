@@ -123,6 +123,7 @@ class GridLists:
 
     def __init__(self, key, cells, insts, dists, bound):
         self.key, self.cells, self.insts, self.dists, self.bound = key, cells, insts, dists, bound
+        self.cap = None          # the cap its texels were packed with (build_object_grid)
 
 
 def _layout(objects: np.ndarray, grid_max: int, fine_cells: int) -> dict:
@@ -261,11 +262,11 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
         region = []
     elif incremental:
         box = _coarse_box(lay, boxes)
-        region = [_region(lay, box)]
         cells, insts, dists, bound_new = _fine_lists(lay, box)
         cells, insts, dists = _sorted(cells, insts, dists)
         redone = _in_box(np.arange(len(bound_new)), fdims, split, box)     # per fine cell
         keep = ~redone[previous.cells]
+        region = _changed_region(lay, redone, previous, keep, cells, insts, dists, bound_new)
         # the kept pairs stay sorted; the new ones (cells disjoint from theirs) go in between
         at = np.searchsorted(previous.cells[keep], cells)
         cells = np.insert(previous.cells[keep], at, cells)
@@ -278,19 +279,44 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
     lists = GridLists(lay["key"], cells, insts, dists, bound)
     texels, info = _pack(lay, cells, insts, dists, bound, len(objects), cap,
                          width, entry_budget)
+    lists.cap = info["cap"]
+    if incremental and info["cap"] != getattr(previous, "cap", None):
+        region = None          # the entry budget's cap moved: crowded cells anywhere changed
     info.update(lists=lists, incremental=bool(incremental), region=region)
     return texels, info
 
 
-def _region(lay: dict, box) -> tuple:
-    """The world box (lo, hi) of coarse index box `box` (inclusive), unbounded on the sides
-    where it reaches the grid's faces (a sample outside the grid reads the cell it clamps into):
-    where sdf_scene's values may differ from the last build's."""
-    lo, cell, dims = lay["lo"], lay["cell"], lay["dims"]
-    a, b = np.asarray(box[0]), np.asarray(box[1])
-    wlo = np.where(a <= 0, -FAR, lo + a * cell)
-    whi = np.where(b >= dims - 1, FAR, lo + (b + 1) * cell)
-    return wlo.astype(np.float64), whi.astype(np.float64)
+def _cell_hashes(cells, insts, dists, n: int):
+    """Per fine cell (n of them): its entries' count and an order-free uint64 hash of its
+    (instance, distance) pairs (sums wrap)."""
+    h = (insts.astype(np.uint64) * np.uint64(0x9E3779B97F4A7C15)) \
+        ^ (np.ascontiguousarray(dists, np.float64).view(np.uint64) * np.uint64(0xC2B2AE3D27D4EB4F))
+    sums = np.zeros(n, np.uint64)
+    np.add.at(sums, cells, h)
+    return np.bincount(cells, minlength=n), sums
+
+
+def _changed_region(lay, redone, previous, keep, cells, insts, dists, bound) -> list:
+    """[world box (lo, hi)] around the re-measured fine cells whose list or bound B differs from
+    the previous build's ([] when none does), unbounded where it reaches the grid's faces (a
+    sample outside the grid reads the cell it clamps into). Outside it every cell is the same,
+    so sdf_scene returns what it did: the moved object's reach is 4 margins, but where others
+    are nearer it sets no cell's B (1,000 spheres: most of that reach keeps its cells)."""
+    n = len(redone)
+    old = ~keep
+    c0, h0 = _cell_hashes(previous.cells[old], previous.insts[old], previous.dists[old], n)
+    c1, h1 = _cell_hashes(cells, insts, dists, n)
+    changed = redone & ((c0 != c1) | (h0 != h1) | (previous.bound != bound))
+    idx = np.flatnonzero(changed)
+    if not len(idx):
+        return []
+    fdims, fcell, lo = lay["fdims"], lay["fcell"], lay["lo"]
+    xyz = np.stack([idx % fdims[0], (idx // fdims[0]) % fdims[1],
+                    idx // (fdims[0] * fdims[1])], axis=1)
+    a, b = xyz.min(axis=0), xyz.max(axis=0)
+    wlo = np.where(a <= 0, -FAR, lo + a * fcell)
+    whi = np.where(b >= fdims - 1, FAR, lo + (b + 1) * fcell)
+    return [(wlo.astype(np.float64), whi.astype(np.float64))]
 
 
 def _sorted(cells, insts, dists) -> tuple:

@@ -20,9 +20,9 @@
  * Everywhere else every sample the direct pass takes is the same as before, so its kept mean
  * is what a restart would compute again: the converged image is the same as after a full
  * restart, and one object dragged among many costs the direct light of the pixels whose cones
- * pass near it, not of the whole view. The regions (the object grid's re-measured cells, its
- * reach around the moved object) are what that exactness costs: in a sparse scene they are
- * metres wide.
+ * pass near it, not of the whole view. The regions (around the object grid's cells whose list
+ * or bound changed: in a sparse scene all of the moved object's reach, 4 grid margins) are what
+ * that exactness costs: there they are metres wide.
  */
 #include "sdf_lib.glsl"
 #include "light_lib.glsl"

@@ -6,7 +6,8 @@ builds everything, and says so). numpy only."""
 import numpy as np
 import pytest
 
-from gpu_shaders.object_grid import build_object_grid, changed_boxes
+from gpu_shaders.object_grid import (FINE_CELLS, GRID_MAX, _coarse_box, _layout,
+                                     build_object_grid, changed_boxes)
 from gpu_shaders.packing import object_row
 
 
@@ -107,23 +108,34 @@ def _cell_contents(texels):
     return centre, ct[:, 1:3], rows[np.lexsort(rows.T[::-1])]
 
 
-def test_values_change_only_inside_the_region():
+@pytest.mark.parametrize("n, cap", [(200, 1024), (600, 1024), (600, 3)])
+def test_values_change_only_inside_the_region(n, cap):
     """build_object_grid's `region` (what the viewport's direct light restarts from): outside it
-    every cell lists the same instances at the same distances with the same bound B, so
-    sdf_scene returns there what it did before the move, and no moved row is listed there."""
+    every cell lists the same instances at the same distances with the same bound B (crowded
+    cells capped the same way), so sdf_scene returns there what it did before the move, and no
+    moved row is listed there. The region is the re-measured cells that changed: in a denser
+    scene, less than the moved object's whole reach."""
     rng = np.random.default_rng(11)
-    rows = _scene(rng, 200)
-    texels, info = build_object_grid(rows)
+    rows = _scene(rng, n)
+    texels, info = build_object_grid(rows, cap=cap)
     for k in (1, 2):
         new = _move(rng, rows, k, step=0.8)
         moved = np.flatnonzero((new != rows).reshape(len(rows), -1).any(axis=1))
-        new_texels, new_info = build_object_grid(new, previous=info["lists"],
+        new_texels, new_info = build_object_grid(new, cap=cap, previous=info["lists"],
                                                  boxes=changed_boxes(rows, new, 256))
+        assert new_info["incremental"] and new_info["region"] is not None
         (lo, hi), = new_info["region"]
         centre, cb, entries = _cell_contents(texels)
         _, new_cb, new_entries = _cell_contents(new_texels)
         out = ~np.all((centre > lo) & (centre < hi), axis=1)
         assert 0.2 < out.mean() < 1.0          # the region is neither everything nor nothing
+        if n == 600 and k == 1:   # one object moved: a part of the cells its reach re-measured
+            lay = _layout(new, GRID_MAX, FINE_CELLS)
+            a, b = _coarse_box(lay, changed_boxes(rows, new, 256))
+            reach_xy = np.prod((b - a + 1)[:2] * lay["cell"])
+            grid_lo, grid_hi = lay["lo"], lay["lo"] + lay["dims"] * lay["cell"]
+            region_xy = np.prod((np.minimum(hi, grid_hi) - np.maximum(lo, grid_lo))[:2])
+            assert region_xy < 0.5 * reach_xy, (region_xy, reach_xy)
         np.testing.assert_array_equal(cb[out], new_cb[out])
         keep = out[entries[:, 0].astype(np.int64)]
         new_keep = out[new_entries[:, 0].astype(np.int64)]

@@ -111,9 +111,9 @@ def test_a_move_restarts_only_the_pixels_it_reaches(tmp_path):
         again = parts[..., 0] < 1.5
         assert np.isin(parts[..., 0], (1.0, float(frames))).all()
         assert again[moved].all(), (tag, int((moved & ~again).sum()))
-        # ... and not the whole view: with the sun, the region the object grid measured again
-        # (its reach, 2 m around the box here) and its shadow, 30% (measured); a lamp just
-        # above the grid's box sees that region across most of the floor (78%)
+        # ... and not the whole view: with the sun, the region whose grid cells changed (on this
+        # sparse floor the box's whole reach, 2 m around it) and its shadow, 30% (measured); a
+        # lamp just above the grid's box sees that region across most of the floor (78%)
         assert 0 < again.mean() < (0.9 if tag == "lamp" else 0.4), (tag, again.mean())
         # a pixel not started again kept its mean to the bit
         np.testing.assert_array_equal(first[~again], before[~again])
