@@ -14,8 +14,31 @@
  *                 level (objects moved there: GlobalSDF.update's dirty boxes); the dispatch
  *                 covers the box, not the level
  * sdf_scene_reach: the object grid's value where it is exact below the band, else every object
- * (in open space at the coarse levels, whose band reaches past the grid's margin).
+ * (in open space at the coarse levels, whose band reaches past the grid's margin); a box refresh
+ * visits instead only its candidates (build_list: build_list_count ascending object rows whose
+ * bounding spheres come within the band of the box; every other one is at least the band away,
+ * and the stored value is clamped there, so the texels are the same).
  */
+float build_scene(vec3 p, float band, out float h, out int nearest)
+{
+  if (build_list_count < 0) {
+    return sdf_scene_reach(p, band, h, nearest);
+  }
+  float best, bound;
+  if (sdf_scene_grid(p, best, h, nearest, bound) && bound < min(best, band)) {
+    best = 1e30;
+    h = 1.0;
+    nearest = -1;
+    int width = textureSize(build_list, 0).x;
+    for (int k = 0; k < build_list_count; k++) {
+      sdf_visit(int(texelFetch(build_list, ivec2(k % width, k / width), 0).x + 0.5), p, best, h,
+                nearest);
+    }
+    return best;
+  }
+  return min(best, bound);
+}
+
 void main()
 {
   ivec3 t = ivec3(gl_GlobalInvocationID.xyz);
@@ -45,6 +68,6 @@ void main()
   vec3 p = (vec3(cell) + 0.5) * build_origin.w;
   float h;
   int nearest;
-  float d = sdf_scene_reach(p, build_band, h, nearest);    /* exact below the band */
+  float d = build_scene(p, build_band, h, nearest);    /* exact below the band */
   imageStore(gsdf_out, t, vec4(min(d, build_band), 0.0, 0.0, 0.0));
 }
