@@ -183,13 +183,17 @@ class Progressive:
             self.parts = gpu.types.GPUTexture((width, height), format='R32F')
             self.signature = gpu.types.GPUTexture((width, height), format='R32I')
             self.key = None
+        rows = np.asarray(lights, np.float32).reshape(-1, 16)
+        if light_texture is None:            # (the engine passes SceneState.light_texture)
+            light_texture = gpu.types.GPUTexture(
+                (4, max(len(rows), 1)), format='RGBA32F',
+                data=float_buffer(rows if len(rows) else np.zeros((1, 16), np.float32)))
         regions = self._regions(resources)
         position = gbuf["textures"]["position"]
         full = key != self.key or regions is None
         if full or regions or position is not self.gbuffer:
-            rows = light_texture if light_texture is not None else _dummy()
-            self._restart(full, regions or [], resources, gbuf, cam_pos, rows,
-                          len(np.asarray(lights).reshape(-1, 16)), sky_cones)
+            self._restart(full, regions or [], resources, gbuf, cam_pos, light_texture,
+                          len(rows), sky_cones)
         self.key, self.gbuffer = key, position
         self.traced = (weakref.ref(resources), resources.objects_version)
         if self.converged:

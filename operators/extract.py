@@ -674,6 +674,7 @@ class ExtractionCache:
         self.light_dirty = True
         self.moved = set()        # objects that only moved since the last update (mark_moved)
         self.index = {}           # {instance name: its index in the last walk}
+        self.instancers = set()   # objects whose instances the last walk listed
 
     def mark(self, objects=(), meshes=(), materials=(), images=False, everything=False):
         """Objects with a geometry update, meshes with one, edited materials (names), any image
@@ -692,7 +693,9 @@ class ExtractionCache:
         update reads only their new matrices into the last walk's result instead of walking
         every instance again (the walk: 14 ms of each redraw of a drag among 1,000 objects,
         bench/object_scaling.py --drag). An object the last walk did not list (hidden, a
-        camera, an empty) is passed over: a move does not change what is listed."""
+        camera, an empty) is passed over: a move does not change what is listed. One whose
+        instances the last walk listed walks again (a geometry-nodes scatter is no
+        `is_instancer`, yet its instances move with it)."""
         self.light_dirty = True
         self.moved.update(names)
 
@@ -700,6 +703,8 @@ class ExtractionCache:
         """Apply mark_moved's objects to the last walk's result (a new result tuple, matrices
         array and `matrices` dict: what sync and the G-buffer compare by identity); False when
         one of them cannot be found (then the caller walks)."""
+        if self.moved & self.instancers:
+            return False          # its instances moved too (geometry nodes: not is_instancer)
         objects, warnings, keys, meshes, mats, visible, holdout = self.last
         objects, mats, matrices = list(objects), mats.copy(), dict(self.matrices)
         found = getattr(depsgraph, "objects", None)
@@ -745,8 +750,11 @@ class ExtractionCache:
         used, keys, objects, matrices, visible = {}, [], [], [], []
         reads = 0
         flags = LayerFlags(depsgraph, view_layer)
+        instancers = set()
         for inst, name in mesh_instances(depsgraph, view_layer):
             obj = inst.object
+            if inst.is_instance and inst.parent is not None:
+                instancers.add(inst.parent.original.name)
             key = mesh_key(inst)
             hit = used.get(key)
             if hit is None:
@@ -791,6 +799,7 @@ class ExtractionCache:
                      np.array([o.holdout for o in objects], bool))
         self.matrices = {o.name: o.matrix_world for o in objects}
         self.index = {name: i for i, name in enumerate(names)}
+        self.instancers = instancers
         # instances that cast no shadow (the same object until the next walk: sync's check)
         self.no_shadow = frozenset(o.name for o in objects if not o.casts_shadow)
         return self.last

@@ -201,8 +201,11 @@ def step(i):
         pos=R["position"].copy()))
     if i == 0:
         first.location.x += 0.3                      # move a whole collection instance
+    elif i == 1:
+        scatter.location.y += 0.3                    # move a geometry-nodes scatter (its
+                                                     # instances too: it is no is_instancer)
 
-viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 2, step)
+viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 3, step)
 emit(frames=[{{k: v for k, v in fr.items() if k != "pos"}} for fr in out])
 """
 
@@ -210,7 +213,8 @@ emit(frames=[{{k: v for k, v in fr.items() if k != "pos"}} for fr in out])
 def test_instanced_gbuffer_equals_the_world_space_one(tmp_path):
     """Collection instances, geometry-nodes instances and a mirrored object: the instanced
     G-buffer (local-space batches, matrices on the GPU) equals the world-space one built from
-    extract_scene (gbuffer.render_gbuffer), before and after an instancer moved."""
+    extract_scene (gbuffer.render_gbuffer), before and after an instancer moved and after a
+    geometry-nodes scatter moved (not an `is_instancer`, yet its instances move with it)."""
     run = run_python(INSTANCES, tmp_path, timeout=300)
     assert run.returncode == 0, run.explain()
     frames = run.result["frames"]
@@ -223,4 +227,5 @@ def test_instanced_gbuffer_equals_the_world_space_one(tmp_path):
     assert frames[0]["draws"] == 4 and frames[1]["read"] == 0     # plane, ico, part, Solo
     assert frames[1]["changed"] > 20                                 # the instance moved
     assert frames[1]["walked"]            # an instancer moved: its instances walked again
+    assert frames[2]["changed"] > 20 and frames[2]["walked"]     # the scatter and its spheres
 
