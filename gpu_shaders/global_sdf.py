@@ -16,7 +16,7 @@ show) or spans more than MAX_PENDING_BOXES boxes. Why: one sphere moved among 1,
 all four levels, 0.3 s each for the coarse ones (their band reaches past the object grid's
 margin, so their cells loop over every object); their boxes take 31-38 ms. A box's cells that
 fall back from the object grid visit only the instances whose bounding spheres come within the
-band of the box (`_candidates`), not every object: the same texels.
+band of their block of 4^3 cells (`_candidates`), not every object: the same texels.
 A level that was never built is built at once. `glsl/global_sdf_lib.glsl` samples the levels
 (`global_sdf_sample`) and traces rays (`trace_hybrid`: mesh SDFs for t < 1.8 m, global beyond).
 """
@@ -44,6 +44,7 @@ struct GlobalSDFParams {
 """
 BYTES = {"R16F": 2, "R32F": 4}
 LIST_WIDTH = 1024         # columns of a box refresh's candidate list texture
+SUB_CELLS = 4             # a box refresh's candidate lists: one per block of 4^3 cells
 _SHADERS = {}
 
 
@@ -59,7 +60,7 @@ def _build_shader(fmt: str):
         info.push_constant('FLOAT', 'build_band')
         info.push_constant('VEC4', 'build_box')
         info.push_constant('VEC4', 'build_box_end')
-        info.push_constant('INT', 'build_list_count')
+        info.push_constant('INT', 'build_list_sub')
         info.sampler(4, 'FLOAT_2D', 'build_list')
         imod = ("ivec3 gsdf_imod(ivec3 a, int n)\n{\n"
                 "  return a - n * ivec3(floor(vec3(a) / float(n)));\n}\n")
@@ -105,7 +106,7 @@ class GlobalSDF:
         self.log = []                            # (frame, level, kind (update's), seconds)
         self._ubo, self._ubo_data = None, None   # GlobalSDFParams of the bound origins
         self._spheres = None                     # (object rows, their bounding spheres)
-        self.candidates = []                     # (level, candidates, objects) per box refresh
+        self.candidates = []        # (level, longest block list, objects) per box refresh
 
     # --- building --------------------------------------------------------------------------
     def set_resources(self, resources: SceneResources):
@@ -115,26 +116,40 @@ class GlobalSDF:
         self.version = getattr(resources, "objects_version", 0)
 
     def _candidates(self, level: int, box):
-        """The instances (ascending rows, an R32F texture of LIST_WIDTH columns, and their
-        count) whose bounding spheres come within the level's band of a cell centre of `box`:
-        the only ones whose values a refresh there can store (sdf_visit never returns less than
-        the distance to an instance's bounding sphere; the band clamps the rest). Why: the
-        coarse levels' band reaches past the object grid's margin, so a refresh's cells in open
-        space fell back to every object (42 ms of a redraw after one of 1,000 spheres moved)."""
+        """Per block of SUB_CELLS^3 cells of `box` (x fastest), the instances whose bounding
+        spheres come within the level's band of one of its cell centres: the only ones whose
+        values a refresh there can store (sdf_visit never returns less than the distance to an
+        instance's bounding sphere; the band clamps the rest). Returns an R32F texture of
+        LIST_WIDTH columns, flat: each block's (first entry, count), then the entries (object
+        rows, ascending), and the longest block's count. Why: the coarse levels' band reaches past
+        the object grid's margin, so a refresh's cells in open space fell back to every object
+        (42 ms of a redraw after one of 1,000 spheres moved; one list for the whole box still
+        held 874 of them at the coarsest level)."""
         objects = self.resources.packed.objects
         if self._spheres is None or self._spheres[0] is not objects:
             valid, centre, radius, _, _, _ = instance_bounds(objects)
             self._spheres = (objects, valid, centre, radius)
         _, valid, centre, radius = self._spheres
         v = self.voxels[level]
-        lo = (np.asarray(box[0], np.float64) + 0.5) * v
-        hi = (np.asarray(box[1], np.float64) - 0.5) * v
-        gap = np.linalg.norm(np.maximum(np.maximum(lo - centre, centre - hi), 0.0), axis=1)
-        rows = np.flatnonzero(valid & (gap - radius < self.band_voxels * v)).astype(np.float32)
-        tex = np.zeros(max(-(-len(rows) // LIST_WIDTH), 1) * LIST_WIDTH, np.float32)
-        tex[:len(rows)] = rows
+        first, end = np.asarray(box[0], np.int64), np.asarray(box[1], np.int64)
+        blocks = -(-(end - first) // SUB_CELLS)
+        ijk = np.stack(np.meshgrid(*[np.arange(b) for b in blocks], indexing="ij"), -1)
+        ijk = ijk.transpose(2, 1, 0, 3).reshape(-1, 3)                   # x fastest
+        a = first + ijk * SUB_CELLS
+        b = np.minimum(a + SUB_CELLS, end)
+        lo, hi = (a + 0.5) * v, (b - 0.5) * v
+        gap = np.linalg.norm(np.maximum(np.maximum(lo[:, None] - centre[None],
+                                                   centre[None] - hi[:, None]), 0.0), axis=2)
+        near = valid[None] & (gap - radius[None] < self.band_voxels * v)
+        counts = near.sum(axis=1)
+        blk, rows = np.nonzero(near)                  # by block, rows ascending within
+        header = np.stack([2 * len(counts) + np.cumsum(counts) - counts, counts], 1)
+        flat = np.concatenate([header.reshape(-1), rows]).astype(np.float32)
+        tex = np.zeros(-(-len(flat) // LIST_WIDTH) * LIST_WIDTH, np.float32)
+        tex[:len(flat)] = flat
         return gpu.types.GPUTexture((LIST_WIDTH, len(tex) // LIST_WIDTH), format='R32F',
-                                    data=float_buffer(tex.reshape(-1, LIST_WIDTH))), len(rows)
+                                    data=float_buffer(tex.reshape(-1, LIST_WIDTH))), \
+            int(counts.max(initial=0))
 
     def _dispatch(self, level: int, origin, prev, box=None):
         """Build (prev None), scroll (prev: the last origin) or, with box = (first cell, end
@@ -143,12 +158,13 @@ class GlobalSDF:
         sh = _build_shader(self.format)
         self.resources.bind(sh)
         if box is None:
-            listed, count = gpu.types.GPUTexture((1, 1), format='R32F'), -1
+            listed, sub = gpu.types.GPUTexture((1, 1), format='R32F'), -1
         else:
-            listed, count = self._candidates(level, box)
-            self.candidates.append((level, count, len(self.resources.packed.objects)))
+            listed, longest = self._candidates(level, box)
+            sub = SUB_CELLS
+            self.candidates.append((level, longest, len(self.resources.packed.objects)))
         sh.uniform_sampler('build_list', listed)
-        sh.uniform_int('build_list_count', count)
+        sh.uniform_int('build_list_sub', sub)
         sh.image('gsdf_out', self.textures[level])
         v = self.voxels[level]
         sh.uniform_float('build_origin', (*map(float, origin), v))

@@ -15,13 +15,21 @@
  *                 covers the box, not the level
  * sdf_scene_reach: the object grid's value where it is exact below the band, else every object
  * (in open space at the coarse levels, whose band reaches past the grid's margin); a box refresh
- * visits instead only its candidates (build_list: build_list_count ascending object rows whose
- * bounding spheres come within the band of the box; every other one is at least the band away,
- * and the stored value is clamped there, so the texels are the same).
+ * visits instead only its block's candidates (build_list, flat in R32F texels: per block of
+ * build_list_sub^3 cells of the box, x fastest, its first entry and count, then the entries:
+ * object rows whose bounding spheres come within the band of one of the block's cell centres;
+ * every other one is at least the band away, and the stored value is clamped there, so the
+ * texels are the same).
  */
-float build_scene(vec3 p, float band, out float h, out int nearest)
+float build_list_at(int k)
 {
-  if (build_list_count < 0) {
+  int width = textureSize(build_list, 0).x;
+  return texelFetch(build_list, ivec2(k % width, k / width), 0).x;
+}
+
+float build_scene(ivec3 cell, vec3 p, float band, out float h, out int nearest)
+{
+  if (build_list_sub < 0) {
     return sdf_scene_reach(p, band, h, nearest);
   }
   float best, bound;
@@ -29,10 +37,14 @@ float build_scene(vec3 p, float band, out float h, out int nearest)
     best = 1e30;
     h = 1.0;
     nearest = -1;
-    int width = textureSize(build_list, 0).x;
-    for (int k = 0; k < build_list_count; k++) {
-      sdf_visit(int(texelFetch(build_list, ivec2(k % width, k / width), 0).x + 0.5), p, best, h,
-                nearest);
+    ivec3 first = ivec3(round(build_box.xyz));
+    ivec3 blocks = (ivec3(round(build_box_end.xyz)) - first + build_list_sub - 1) / build_list_sub;
+    ivec3 b = (cell - first) / build_list_sub;
+    int j = b.x + blocks.x * (b.y + blocks.y * b.z);
+    int start = int(build_list_at(2 * j) + 0.5);
+    int count = int(build_list_at(2 * j + 1) + 0.5);
+    for (int k = start; k < start + count; k++) {
+      sdf_visit(int(build_list_at(k) + 0.5), p, best, h, nearest);
     }
     return best;
   }
@@ -68,6 +80,6 @@ void main()
   vec3 p = (vec3(cell) + 0.5) * build_origin.w;
   float h;
   int nearest;
-  float d = build_scene(p, build_band, h, nearest);    /* exact below the band */
+  float d = build_scene(cell, p, build_band, h, nearest);    /* exact below the band */
   imageStore(gsdf_out, t, vec4(min(d, build_band), 0.0, 0.0, 0.0));
 }
