@@ -58,6 +58,7 @@ CELL_CAP = 1024           # entries a cell lists at most (fewer where the lists 
 ENTRY_BUDGET = 1 << 20    # list entries in all (2 a texel: 8 MiB of RGBA32F)
 EXACT_VOXELS = 4.0        # a truncated cell's bound: at least this many voxels of its objects
 REACH_MARGINS = 4.0
+MAX_REGIONS = 16          # boxes a changed region is given as at most (then their bounding box)
 HEADER_TEXELS = 3
 FAR = 1e30
 PAIR_CHUNK = 1 << 22      # (instance, cell) candidate pairs per numpy batch (memory bound)
@@ -266,7 +267,8 @@ def build_object_grid(objects: np.ndarray, grid_max: int = GRID_MAX, cap: int = 
         cells, insts, dists = _sorted(cells, insts, dists)
         redone = _in_box(np.arange(len(bound_new)), fdims, split, box)     # per fine cell
         keep = ~redone[previous.cells]
-        region = _changed_region(lay, redone, previous, keep, cells, insts, dists, bound_new)
+        region = _changed_region(lay, redone, previous, keep, cells, insts, dists, bound_new,
+                                 [_coarse_box(lay, [b]) for b in boxes])
         # the kept pairs stay sorted; the new ones (cells disjoint from theirs) go in between
         at = np.searchsorted(previous.cells[keep], cells)
         cells = np.insert(previous.cells[keep], at, cells)
@@ -296,12 +298,15 @@ def _cell_hashes(cells, insts, dists, n: int):
     return np.bincount(cells, minlength=n), sums
 
 
-def _changed_region(lay, redone, previous, keep, cells, insts, dists, bound) -> list:
-    """[world box (lo, hi)] around the re-measured fine cells whose list or bound B differs from
-    the previous build's ([] when none does), unbounded where it reaches the grid's faces (a
-    sample outside the grid reads the cell it clamps into). Outside it every cell is the same,
+def _changed_region(lay, redone, previous, keep, cells, insts, dists, bound, groups) -> list:
+    """World boxes (lo, hi) around the re-measured fine cells whose list or bound B differs from
+    the previous build's ([] when none does), unbounded where they reach the grid's faces (a
+    sample outside the grid reads the cell it clamps into). Outside them every cell is the same,
     so sdf_scene returns what it did: the moved object's reach is 4 margins, but where others
-    are nearer it sets no cell's B (1,000 spheres: most of that reach keeps its cells)."""
+    are nearer it sets no cell's B (1,000 spheres: most of that reach keeps its cells). One box
+    per group (each changed row's coarse index box: a cell changes only within reach of one),
+    overlapping ones merged, so an object moved far, or several moved apart, do not make one
+    box spanning what lies between them (at most MAX_REGIONS, else their bounding box)."""
     n = len(redone)
     old = ~keep
     c0, h0 = _cell_hashes(previous.cells[old], previous.insts[old], previous.dists[old], n)
@@ -310,13 +315,42 @@ def _changed_region(lay, redone, previous, keep, cells, insts, dists, bound) -> 
     idx = np.flatnonzero(changed)
     if not len(idx):
         return []
-    fdims, fcell, lo = lay["fdims"], lay["fcell"], lay["lo"]
+    fdims, fcell, lo, split = lay["fdims"], lay["fcell"], lay["lo"], lay["split"]
     xyz = np.stack([idx % fdims[0], (idx // fdims[0]) % fdims[1],
                     idx // (fdims[0] * fdims[1])], axis=1)
-    a, b = xyz.min(axis=0), xyz.max(axis=0)
-    wlo = np.where(a <= 0, -FAR, lo + a * fcell)
-    whi = np.where(b >= fdims - 1, FAR, lo + (b + 1) * fcell)
-    return [(wlo.astype(np.float64), whi.astype(np.float64))]
+    parent = xyz // split
+    spans = []
+    for a, b in groups:                          # a few changed rows, not cells
+        mine = np.all((parent >= a) & (parent <= b), axis=1)
+        if mine.any():
+            spans.append([xyz[mine].min(axis=0), xyz[mine].max(axis=0)])
+    spans = _merge_spans(spans) if len(spans) <= MAX_REGIONS else \
+        [[xyz.min(axis=0), xyz.max(axis=0)]]
+    out = []
+    for a, b in spans:
+        wlo = np.where(a <= 0, -FAR, lo + a * fcell)
+        whi = np.where(b >= fdims - 1, FAR, lo + (b + 1) * fcell)
+        out.append((wlo.astype(np.float64), whi.astype(np.float64)))
+    return out
+
+
+def _merge_spans(spans: list) -> list:
+    """Inclusive index boxes [lo, hi] with every overlapping or touching pair merged into one."""
+    spans = [list(s) for s in spans]
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(spans)):
+            for j in range(i + 1, len(spans)):
+                (a0, b0), (a1, b1) = spans[i], spans[j]
+                if np.all(a0 <= b1 + 1) and np.all(a1 <= b0 + 1):
+                    spans[i] = [np.minimum(a0, a1), np.maximum(b0, b1)]
+                    del spans[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return spans
 
 
 def _sorted(cells, insts, dists) -> tuple:

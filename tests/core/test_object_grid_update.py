@@ -87,6 +87,40 @@ def test_a_move_that_grows_the_grid_builds_it_all():
     assert changed_boxes(rows, rows[:-1], 256) is None
 
 
+def test_a_far_move_gives_two_regions():
+    """An object moved far (its old and new boxes apart) changes two places: the region is two
+    boxes, not one spanning the floor between them, and outside both nothing changed."""
+    rng = np.random.default_rng(7)
+    rows = _scene(rng, 300)
+    texels, info = build_object_grid(rows)
+    new = rows.copy()
+    mw = np.linalg.inv(rows[1, 0:4].astype(np.float64))
+    mw[:3, 3] = (-7.0, -7.0, 0.5) if mw[0, 3] > 0 else (7.0, 7.0, 0.5)
+    half = (rows[1, 7, :3] - rows[1, 6, :3]) / 2
+    new[1] = object_row(np.linalg.inv(mw), -half, rows[1, 4, 3], (1, 1, 1), 4.0, -half, half, 0,
+                        float(rows[1, 7, 3]))
+    boxes = changed_boxes(rows, new, 256)
+    assert len(boxes) == 2                       # old and new place apart
+    new_texels, new_info = build_object_grid(new, previous=info["lists"], boxes=boxes)
+    regions = new_info["region"]
+    assert len(regions) == 2, regions
+    (lo0, hi0), (lo1, hi1) = regions
+    assert np.any(hi0 < lo1) or np.any(hi1 < lo0)          # apart
+    centre, cb, entries = _cell_contents(texels)
+    _, new_cb, new_entries = _cell_contents(new_texels)
+    out = np.ones(len(centre), bool)
+    for lo, hi in regions:
+        out &= ~np.all((centre > lo) & (centre < hi), axis=1)
+    np.testing.assert_array_equal(cb[out], new_cb[out])
+    keep = out[entries[:, 0].astype(np.int64)]
+    new_keep = out[new_entries[:, 0].astype(np.int64)]
+    np.testing.assert_array_equal(entries[keep], new_entries[new_keep])
+    # the two boxes leave out most of what one box around both would hold
+    lo_all, hi_all = np.minimum(lo0, lo1), np.maximum(hi0, hi1)
+    between = ~np.all((centre > lo_all) & (centre < hi_all), axis=1)
+    assert out.mean() > between.mean() + 0.2, (out.mean(), between.mean())
+
+
 def _cell_contents(texels):
     """Per fine cell of a grid texture: its world centre, (count, B), and its list entries as
     (cell, instance, distance) rows sorted (first list texels differ between builds)."""
@@ -123,18 +157,20 @@ def test_values_change_only_inside_the_region(n, cap):
         moved = np.flatnonzero((new != rows).reshape(len(rows), -1).any(axis=1))
         new_texels, new_info = build_object_grid(new, cap=cap, previous=info["lists"],
                                                  boxes=changed_boxes(rows, new, 256))
-        assert new_info["incremental"] and new_info["region"] is not None
-        (lo, hi), = new_info["region"]
+        assert new_info["incremental"] and new_info["region"]
         centre, cb, entries = _cell_contents(texels)
         _, new_cb, new_entries = _cell_contents(new_texels)
-        out = ~np.all((centre > lo) & (centre < hi), axis=1)
+        out = np.ones(len(centre), bool)
+        for lo, hi in new_info["region"]:
+            out &= ~np.all((centre > lo) & (centre < hi), axis=1)
         assert 0.2 < out.mean() < 1.0          # the region is neither everything nor nothing
         if n == 600 and k == 1:   # one object moved: a part of the cells its reach re-measured
             lay = _layout(new, GRID_MAX, FINE_CELLS)
             a, b = _coarse_box(lay, changed_boxes(rows, new, 256))
             reach_xy = np.prod((b - a + 1)[:2] * lay["cell"])
             grid_lo, grid_hi = lay["lo"], lay["lo"] + lay["dims"] * lay["cell"]
-            region_xy = np.prod((np.minimum(hi, grid_hi) - np.maximum(lo, grid_lo))[:2])
+            region_xy = sum(np.prod((np.minimum(hi, grid_hi) - np.maximum(lo, grid_lo))[:2])
+                            for lo, hi in new_info["region"])
             assert region_xy < 0.5 * reach_xy, (region_xy, reach_xy)
         np.testing.assert_array_equal(cb[out], new_cb[out])
         keep = out[entries[:, 0].astype(np.int64)]
