@@ -660,6 +660,7 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
                                      # direct light restarts locally (or not at all)
         moved = set()                # objects that only moved, none an instancer: the
                                      # extraction reads their matrices without a walk
+        lights_only = True           # only lights (objects or data) changed: no mesh walk
         edited, materials, images = set(), set(), False   # for the staleness check's re-hashing
         meshes, unsure = set(), False                      # for the extraction cache
         for u in depsgraph.updates:
@@ -671,6 +672,9 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
                     isinstance(ident, bpy.types.Scene) and not u.is_updated_transform
                     or isinstance(ident, bpy.types.Object) and ident.type != 'LIGHT'
                     and u.is_updated_transform)
+            lights_only = lights_only and (
+                isinstance(ident, bpy.types.Light)
+                or isinstance(ident, bpy.types.Object) and ident.type == 'LIGHT')
             if moved is not None and isinstance(ident, bpy.types.Object) \
                     and ident.type != 'LIGHT' and u.is_updated_transform \
                     and not u.is_updated_geometry and not u.is_updated_shading \
@@ -708,6 +712,8 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         self._state.stale.mark(edited, materials, images)
         if moved:
             extraction(self._state).mark_moved(moved)
+        elif lights_only and len(depsgraph.updates):
+            extraction(self._state).mark_lights()
         else:
             extraction(self._state).mark(edited, meshes, materials, images, unsure)
         if len(depsgraph.updates):

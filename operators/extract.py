@@ -687,6 +687,12 @@ class ExtractionCache:
         self.images = self.images or bool(images)
         self.everything = self.everything or bool(everything)
 
+    def mark_lights(self):
+        """Only lights changed (their objects or data, view_update): the next light_rows reads
+        them again, and the next update returns the last walk without walking the meshes (a
+        light dragged among 1,000 objects walked all of them each redraw)."""
+        self.light_dirty = True
+
     def mark_moved(self, names):
         """Objects (names) that only moved, none of them an instancer (view_update: updates that
         are all transforms of such objects): unless something else is marked first, the next

@@ -52,15 +52,17 @@ np.save("f12.npy", R["direct"])
 import viewport_harness
 frames = direct_light.Progressive.FRAMES
 parts = []
+walked = []
 def redraw(i):
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("error")
     parts.append(R["direct_part"])
+    walked.append(R["extraction_walked"])
     np.save(f"direct_{{i}}.npy", R["direct"])
     if i == frames + 1:
         lamp.location.x -= 0.5
 viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, frames + 3, redraw)
-emit(frames=frames, parts=[list(p) if p else None for p in parts])
+emit(frames=frames, parts=[list(p) if p else None for p in parts], walked=walked)
 """
 
 
@@ -75,6 +77,8 @@ def test_progressive_direct_light_is_f12s_and_then_free(tmp_path):
     assert parts[frames] is None and parts[frames + 1] is None, parts
     # ... and after the lamp moved (edited in redraw frames + 1) the next one starts again
     assert parts[frames + 2] == [0, 8 // frames], parts
+    # a moved light is read again without walking the meshes (ExtractionCache.mark_lights)
+    assert run.result["walked"][frames + 2] is False, run.result["walked"]
     f12 = np.load(tmp_path / "f12.npy")[..., :3]
     first = np.load(tmp_path / "direct_0.npy")[..., :3]
     done = np.load(tmp_path / f"direct_{frames - 1}.npy")[..., :3]
