@@ -169,6 +169,15 @@ second = collection_instancer("InstB", parts, (-0.6, 0.4, 0.0))
 solo = cube("Solo", 0.6, (0.3, -0.8, 0.3))
 solo.rotation_euler = (0.0, 0.0, 0.5)
 solo.scale = (1.0, -1.0, 1.5)                        # mirrored: normals must still face out
+bpy.ops.mesh.primitive_grid_add(x_subdivisions=12, y_subdivisions=12, size=0.8,
+                                location=(-0.9, -0.6, 0.1))
+wavy = bpy.context.object                            # displaced in world coordinates: a move
+wavy.name = "Wavy"                                   # changes its shape (a geometry update)
+wave = wavy.modifiers.new("Displace", 'DISPLACE')
+wave.texture = bpy.data.textures.new("Wave", 'CLOUDS')
+wave.texture.noise_scale = 0.2
+wave.texture_coords = 'GLOBAL'
+wave.strength = 0.3
 sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
 aimed_camera((3.0, -4.0, 5.0), (0.0, 0.0, 0.0))
 scene.render.engine = "LUMEN_GI"
@@ -204,8 +213,10 @@ def step(i):
     elif i == 1:
         scatter.location.y += 0.3                    # move a geometry-nodes scatter (its
                                                      # instances too: it is no is_instancer)
+    elif i == 2:
+        wavy.location.x += 0.25                      # its displacement moves across it
 
-viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 3, step)
+viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 4, step)
 emit(frames=[{{k: v for k, v in fr.items() if k != "pos"}} for fr in out])
 """
 
@@ -213,19 +224,23 @@ emit(frames=[{{k: v for k, v in fr.items() if k != "pos"}} for fr in out])
 def test_instanced_gbuffer_equals_the_world_space_one(tmp_path):
     """Collection instances, geometry-nodes instances and a mirrored object: the instanced
     G-buffer (local-space batches, matrices on the GPU) equals the world-space one built from
-    extract_scene (gbuffer.render_gbuffer), before and after an instancer moved and after a
-    geometry-nodes scatter moved (not an `is_instancer`, yet its instances move with it)."""
+    extract_scene (gbuffer.render_gbuffer), before and after an instancer moved, after a
+    geometry-nodes scatter moved (not an `is_instancer`, yet its instances move with it) and
+    after a mesh displaced in world coordinates moved (Blender flags that as a geometry update:
+    its mesh is read again, not only its matrix)."""
     run = run_python(INSTANCES, tmp_path, timeout=300)
     assert run.returncode == 0, run.explain()
     frames = run.result["frames"]
     print(frames)
     for fr in frames:
-        assert fr["objects"] == 8                        # plane, 4 icospheres, 2 parts, Solo
+        assert fr["objects"] == 9                 # plane, 4 icospheres, 2 parts, Solo, Wavy
         assert fr["triangles"] == fr["old_triangles"] > 0
         assert fr["covered"] > 500 and fr["coverage_differs"] <= 3
         assert fr["position"] < 1e-4 and fr["normal"] < 1e-3 and fr["albedo"] < 1e-6
-    assert frames[0]["draws"] == 4 and frames[1]["read"] == 0     # plane, ico, part, Solo
+    assert frames[0]["draws"] == 5 and frames[1]["read"] == 0   # plane, ico, part, Solo, Wavy
     assert frames[1]["changed"] > 20                                 # the instance moved
     assert frames[1]["walked"]            # an instancer moved: its instances walked again
     assert frames[2]["changed"] > 20 and frames[2]["walked"]     # the scatter and its spheres
+    assert frames[3]["changed"] > 5 and frames[3]["walked"]      # Wavy, re-read
+    assert frames[3]["read"] == 1
 
