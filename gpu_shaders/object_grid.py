@@ -52,6 +52,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .global_sdf_ref import merge_boxes
+
 GRID_MAX = 32
 GRID_WIDTH = 1024
 CELL_CAP = 1024           # entries a cell lists at most (fewer where the lists pass ENTRY_BUDGET)
@@ -352,22 +354,10 @@ def _changed_region(lay, redone, previous, keep, cells, insts, dists, bound, gro
 
 
 def _merge_spans(spans: list) -> list:
-    """Inclusive index boxes [lo, hi] with every overlapping or touching pair merged into one."""
-    spans = [list(s) for s in spans]
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(spans)):
-            for j in range(i + 1, len(spans)):
-                (a0, b0), (a1, b1) = spans[i], spans[j]
-                if np.all(a0 <= b1 + 1) and np.all(a1 <= b0 + 1):
-                    spans[i] = [np.minimum(a0, a1), np.maximum(b0, b1)]
-                    del spans[j]
-                    merged = True
-                    break
-            if merged:
-                break
-    return spans
+    """Inclusive index boxes [lo, hi] with every overlapping or touching pair merged into one
+    (global_sdf_ref.merge_boxes, whose ends are exclusive)."""
+    merged = merge_boxes([(a, np.asarray(b) + 1) for a, b in spans])
+    return [(np.asarray(a, np.int64), np.asarray(b, np.int64) - 1) for a, b in merged]
 
 
 def _sorted(cells, insts, dists) -> tuple:

@@ -267,8 +267,7 @@ def test_hybrid_trace_matches_mesh_sdf_trace(tmp_path):
     assert close >= 0.99
 
 
-MOVED = SETUP + """
-out = {}
+MOVING = SETUP + """
 def moved_rows(rows, index, delta):
     # instance `index` moved by `delta` in world space: world-to-local = W2L T(-delta)
     rows = np.array(rows, np.float32)
@@ -277,7 +276,10 @@ def moved_rows(rows, index, delta):
     rows[index, 0:4] = w2l
     rows[index, 8, :3] += np.asarray(delta, np.float32)
     return rows
+"""
 
+MOVED = MOVING + """
+out = {}
 def job(depsgraph):
     cam = np.array((0.2, -0.3, 0.6))
     res = SceneResources.from_bake(bake)
@@ -311,21 +313,13 @@ emit(**out)
 """
 
 
-SCATTER = SETUP + """
+SCATTER = MOVING + """
 rng = np.random.default_rng(4)
 vs, fs = icosphere(0.12, 1)
 spheres = [ObjectInput(f"S{i}", vs, fs, matrix((*rng.uniform(-3.0, 3.0, 2), rng.uniform(0.2, 2.5))))
            for i in range(40)]
 scatter = bake_scene(spheres, BakeSettings(voxel_density=16.0))
 out = {}
-def moved_rows(rows, index, delta):
-    rows = np.array(rows, np.float32)
-    w2l = rows[index, 0:4].astype(np.float64)
-    w2l[:3, 3] -= w2l[:3, :3] @ np.asarray(delta, np.float64)
-    rows[index, 0:4] = w2l
-    rows[index, 8, :3] += np.asarray(delta, np.float32)
-    return rows
-
 def job(depsgraph):
     cam = np.array((0.0, 0.0, 1.0))
     res = SceneResources.from_bake(scatter)
