@@ -14,6 +14,9 @@ from typing import Optional
 import numpy as np
 
 DEFAULT_ALBEDO = (0.8, 0.8, 0.8)
+# Materials that stop no more than this share of light are see-through (glass, alpha): their faces
+# are left out of the SDFs, the cards and the G-buffer, so light and the camera pass them
+SEE_THROUGH = 0.5
 
 
 @dataclass
@@ -24,6 +27,10 @@ class Material:
     emission_color: tuple = (0.0, 0.0, 0.0)       # linear RGB, multiplied by the strength
     emission_strength: float = 0.0
     emission_texture: Optional[np.ndarray] = None
+    # the share of light the surface stops (1 opaque; 0 clear glass or fully transparent):
+    # operators/extract.py leaves out the faces of a material at or under SEE_THROUGH, so it is
+    # not in the digest (the faces kept say it)
+    opacity: float = 1.0
 
     def digest(self) -> bytes:
         """Content hash input (textures included), for re-baking only what changed."""

@@ -25,7 +25,7 @@ import dataclasses
 import numpy as np
 
 from ..lumen_addon.bake import ObjectInput
-from ..lumen_addon.materials import Material
+from ..lumen_addon.materials import SEE_THROUGH, Material
 
 _EMPTY_V = np.zeros((0, 3), np.float64)
 _EMPTY_T = np.zeros((0, 3), np.int64)
@@ -135,6 +135,58 @@ def material_emits(mat) -> bool:
     if linked is not None and linked[0].type == 'TEX_IMAGE' and linked[0].image is not None:
         return True
     return max(_rgb(socket)) > 0.0
+
+
+# Shaders that let light and the camera through (Cycles: transmission or transparency); a
+# surface made of them is see-through (lumen_addon.materials.SEE_THROUGH)
+CLEAR_SHADERS = {'BSDF_GLASS', 'BSDF_REFRACTION', 'BSDF_TRANSPARENT'}
+
+
+def _value(node, *names, default=0.0):
+    """(value of the first input of `node` named in `names`, whether a link drives it)."""
+    for name in names:
+        socket = node.inputs.get(name)
+        if socket is not None:
+            return float(socket.default_value), _follow(socket) is not None
+    return default, False
+
+
+def principled_opacity(node):
+    """(opacity, warnings) of a Principled BSDF: the share of light it stops, Alpha x (1 - the
+    transmission lobe's weight), that lobe being Transmission Weight x (1 - Metallic) as in
+    Cycles' Principled BSDF. Values only: a cut-out (an image driving Alpha) is drawn opaque and
+    named in a warning; a driven Transmission Weight or Metallic uses its value."""
+    notes = []
+    alpha, alpha_linked = _value(node, "Alpha", default=1.0)
+    if alpha_linked:
+        notes.append("Alpha is driven by a node (cut-outs are not supported); drawn opaque")
+        alpha = 1.0
+    transmission, t_linked = _value(node, "Transmission Weight", "Transmission")
+    metallic, m_linked = _value(node, "Metallic")
+    if t_linked or (m_linked and transmission > 0.0):
+        notes.append(f"Transmission Weight or Metallic is driven by a node (not supported); "
+                     f"using the values {transmission:g} and {metallic:g}")
+    lobe = min(max(transmission, 0.0), 1.0) * (1.0 - min(max(metallic, 0.0), 1.0))
+    return float(min(max(alpha, 0.0), 1.0) * (1.0 - lobe)), notes
+
+
+# Light Path outputs whose value is known for the light the preview carries (shadow and bounce
+# rays, never camera rays): the usual "glass that lets shadows through" trick mixes on these
+_LIGHT_RAY = {"Is Shadow Ray": 1.0, "Is Camera Ray": 0.0}
+
+
+def mix_factor(node):
+    """(factor, warnings) of a Mix Shader for the light the preview carries: its value, or a
+    Light Path output's (_LIGHT_RAY); None (with a warning) when anything else drives it."""
+    socket = node.inputs[0]
+    linked = _follow(socket)
+    if linked is None:
+        return min(max(float(socket.default_value), 0.0), 1.0), []
+    src, out = linked
+    if src.type == 'LIGHT_PATH' and out.name in _LIGHT_RAY:
+        return _LIGHT_RAY[out.name], []
+    return None, [f"the Mix Shader's Factor is driven by a {src.bl_label} node (cut-outs are "
+                  f"not supported); drawn opaque"]
 
 
 class _Texture:
@@ -256,12 +308,20 @@ class Extractor:
                                                     "Output's Surface; using its viewport "
                                                     "display colour"])
         node = src[0]
+        if node.type in CLEAR_SHADERS:
+            return MaterialInfo(dataclasses.replace(fallback, opacity=0.0))
+        if node.type == 'MIX_SHADER':
+            mixed = self._mix_shader(mat, node)
+            if mixed is not None:
+                return mixed
         if node.type != 'BSDF_PRINCIPLED':
             what = (f"node group '{node.node_tree.name}'" if node.type == 'GROUP' and node.node_tree
                     else f"a {node.bl_label} node")
             return MaterialInfo(fallback, warnings=[f"surface is {what}, not a Principled BSDF; "
                                                     f"using its viewport display colour"])
+        return self._principled(mat, node)
 
+    def _principled(self, mat, node):
         warnings, uv_maps = [], []
         base_socket = node.inputs["Base Color"]
         base_color = _rgb(base_socket)
@@ -288,10 +348,35 @@ class Extractor:
             if emit_tex is not None:
                 uv_maps.append(uv_map)
 
+        opacity, notes = principled_opacity(node)
+        warnings += notes
         material = Material(name=mat.name, base_color=base_color, base_color_texture=base_tex,
                             emission_color=emission, emission_strength=strength,
-                            emission_texture=emit_tex)
+                            emission_texture=emit_tex, opacity=opacity)
         return MaterialInfo(material, uv_maps, bool(uv_maps), warnings)
+
+    def _mix_shader(self, mat, node):
+        """A Mix Shader of a clear shader (Transparent, Glass, Refraction) and a Principled BSDF
+        or another clear one, the usual way to make glass or a fade in Cycles: the Principled
+        side's colours and the mix's opacity. None for any other mix (the caller falls back)."""
+        sides = [_follow(node.inputs[1]), _follow(node.inputs[2])]
+        kinds = [s[0].type if s is not None else None for s in sides]
+        if not any(k in CLEAR_SHADERS for k in kinds) or not all(
+                k in CLEAR_SHADERS or k == 'BSDF_PRINCIPLED' for k in kinds):
+            return None
+        fac, notes = mix_factor(node)
+        if fac is None:                   # a cut-out (a texture drives the mix): drawn opaque
+            fac = 1.0 if kinds[0] in CLEAR_SHADERS else 0.0
+        if 'BSDF_PRINCIPLED' in kinds:
+            info = self._principled(mat, sides[kinds.index('BSDF_PRINCIPLED')][0])
+        else:
+            info = MaterialInfo(Material(name=mat.name, base_color=_display_colour(mat)))
+        own = info.material.opacity
+        opacity = sum(w * (0.0 if k in CLEAR_SHADERS else own)
+                      for w, k in zip((1.0 - fac, fac), kinds))
+        info.material = dataclasses.replace(info.material, opacity=float(opacity))
+        info.warnings += notes
+        return info
 
     def _linked_texture(self, socket, label):
         """(array, UV map, warnings, unsupported) for an Image Texture linked straight to socket.
@@ -339,14 +424,41 @@ class Extractor:
 
 class MeshData:
     """Everything extracted from one evaluated mesh with one set of materials, and the warnings
-    that apply to every object showing it."""
+    that apply to every object showing it. `see_through`: triangles left out because their
+    material is see-through (clear_faces)."""
 
     def __init__(self, vertices, triangles, normals=None, uvs=None, material_ids=None,
-                 materials=(), warnings=()):
+                 materials=(), warnings=(), see_through: int = 0):
         self.vertices, self.triangles = vertices, triangles
         self.normals, self.uvs, self.material_ids = normals, uvs, material_ids
         self.materials = list(materials)
         self.warnings = list(warnings)
+        self.see_through = int(see_through)
+
+
+def clear_faces(materials, ids) -> np.ndarray | None:
+    """bool [T]: the triangles whose material is see-through (opacity at or under
+    SEE_THROUGH: glass, Alpha, a mix with a Transparent BSDF), or None when there are none.
+    They are left out of everything the preview draws and traces, as Lumen leaves translucent
+    surfaces out of its scene: light and the camera pass them (a glass pane drawn opaque kept
+    the sun out of the room behind it)."""
+    if not len(materials) or ids is None or not len(ids):
+        return None
+    clear = np.array([m.opacity <= SEE_THROUGH for m in materials], bool)
+    if not clear.any():
+        return None
+    return clear[np.clip(ids, 0, len(materials) - 1)]
+
+
+def _without(vertices, triangles, normals, ids, drop):
+    """The arrays without the triangles `drop` marks, the vertices they alone used dropped too
+    (numpy only)."""
+    keep = ~drop
+    tris = triangles[keep]
+    used = np.unique(tris)
+    remap = np.full(len(vertices), -1, np.int64)
+    remap[used] = np.arange(len(used))
+    return vertices[used], remap[tris], normals[keep], ids[keep], keep
 
 
 def _uv_layer(mesh, name, mat_names, warnings):
@@ -407,8 +519,16 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
                     if uv_name not in uv_names:
                         uv_names.append(uv_name)
 
+        drop = clear_faces(materials, ids)
+        see_through = 0
+        keep = None
+        if drop is not None:
+            see_through = int(drop.sum())
+            vertices, triangles, normals, ids, keep = _without(vertices, triangles, normals, ids,
+                                                               drop)
+            loops = loops[keep]
         uvs = None
-        if textured:
+        if textured and len(triangles):
             names = ("material " if len(textured) == 1 else "materials ") + ", ".join(
                 f"'{n}'" for n in textured)
             if len(uv_names) > 1:
@@ -418,7 +538,7 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             layer = _uv_layer(mesh, uv_names[0], names, warnings)
             if layer is not None:
                 uvs = corner_uvs(mesh, loops, layer)
-        return MeshData(vertices, triangles, normals, uvs, ids, materials, warnings)
+        return MeshData(vertices, triangles, normals, uvs, ids, materials, warnings, see_through)
     finally:
         obj_eval.to_mesh_clear()
 
@@ -578,6 +698,8 @@ def extract_scene(depsgraph, view_layer=None):
             data = cache[key] = extract_mesh(obj, ex, geometry)
         for message in data.warnings:
             ex.warn(name, message)
+        if not len(data.triangles):       # all see-through (a glass pane): nothing to draw
+            continue
         props = getattr(source, "lumen", None)
         out.append(ObjectInput(
             name=name, vertices=data.vertices, triangles=data.triangles,
@@ -779,6 +901,8 @@ class ExtractionCache:
             data = hit.data
             for message in data.warnings:
                 ex.warn(name, message)
+            if not len(data.triangles):   # all see-through (a glass pane): nothing to draw
+                continue
             source = obj.original
             props = getattr(source, "lumen", None)
             m = np.array(inst.matrix_world, dtype=np.float64)

@@ -277,3 +277,104 @@ emit(result=result, error=error, status=bpy.context.scene.lumen.last_bake.status
                          ("Warning: Holes: ", "material slot 2")):
         assert any(w.startswith(start) and words in w for w in warnings), (start, warnings)
     assert "8 material warnings" in r["status"], r["status"]
+
+
+SEE_THROUGH_CASES = """
+empty_scene()
+
+def principled_with(name, **inputs):
+    m = principled(name, base=(0.2, 0.4, 0.6))
+    bsdf = m.node_tree.nodes["Principled BSDF"]
+    for k, v in inputs.items():
+        bsdf.inputs[k].default_value = v
+    return m
+
+def surface(name, kind):
+    m = principled(name)
+    replace_surface(m, kind)
+    return m
+
+def mixed(name, fac, clear_first=False, light_path=None, image=None):
+    m = principled(name, base=(0.2, 0.4, 0.6))
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    mix = nodes.new("ShaderNodeMixShader")
+    clear = nodes.new("ShaderNodeBsdfTransparent")
+    bsdf = nodes["Principled BSDF"]
+    a, b = (clear, bsdf) if clear_first else (bsdf, clear)
+    links.new(a.outputs[0], mix.inputs[1])
+    links.new(b.outputs[0], mix.inputs[2])
+    mix.inputs[0].default_value = fac
+    if light_path is not None:
+        links.new(nodes.new("ShaderNodeLightPath").outputs[light_path], mix.inputs[0])
+    if image is not None:
+        tex = nodes.new("ShaderNodeTexImage")
+        tex.image = image
+        links.new(tex.outputs["Alpha"], mix.inputs[0])
+    links.new(mix.outputs[0], nodes["Material Output"].inputs["Surface"])
+    return m
+
+img, _ = checker_png(Path("checker.png").resolve())
+cases = {
+    "Opaque": principled_with("Opaque"),
+    "Glass": principled_with("Glass", **{"Transmission Weight": 1.0}),
+    "MetalGlass": principled_with("MetalGlass", **{"Transmission Weight": 1.0, "Metallic": 1.0}),
+    "HalfGlass": principled_with("HalfGlass", **{"Transmission Weight": 1.0, "Metallic": 0.5}),
+    "Faded": principled_with("Faded", Alpha=0.2),
+    "Veiled": principled_with("Veiled", Alpha=0.7),
+    "GlassBSDF": surface("GlassBSDF", "ShaderNodeBsdfGlass"),
+    "Refraction": surface("Refraction", "ShaderNodeBsdfRefraction"),
+    "Transparent": surface("Transparent", "ShaderNodeBsdfTransparent"),
+    "Translucent": surface("Translucent", "ShaderNodeBsdfTranslucent"),
+    "MixFade": mixed("MixFade", 0.8),
+    "MixFadeFlipped": mixed("MixFadeFlipped", 0.8, clear_first=True),
+    "ShadowTrick": mixed("ShadowTrick", 0.0, light_path="Is Shadow Ray"),
+    "CameraTrick": mixed("CameraTrick", 1.0, light_path="Is Camera Ray"),
+    "CutOut": mixed("CutOut", 0.0, image=img),
+}
+frame = principled("Frame", base=(0.5, 0.5, 0.5))
+for i, (name, mat) in enumerate(cases.items()):
+    ob = cube(name, location=(3.0 * i, 0.0, 0.0))
+    ob.data.materials.append(frame)
+    ob.data.materials.append(mat)
+    ob.data.polygons.foreach_set("material_index", np.array([0, 0, 0, 0, 1, 1], np.int32))
+    ob.data.update()
+pane = cube("Pane", location=(0.0, 5.0, 0.0))           # all glass: nothing left to draw
+pane.data.materials.append(cases["Glass"])
+objects, warnings = extract()
+emit(objects={n: [len(o.triangles), len(o.vertices), int(o.triangles.max()),
+                  len(o.normals), len(o.material_ids), sorted(set(o.material_ids.tolist())),
+                  [round(m.opacity, 6) for m in o.materials],
+                  list(o.materials[1].base_color)] for n, o in objects.items()},
+     warnings=warnings)
+"""
+
+
+def test_see_through_materials_leave_their_faces_out(blender):
+    """Glass (Transmission Weight, a Glass or Refraction BSDF), Alpha and Transparent BSDF mixes
+    are see-through, as Cycles lets light through them: their faces leave the mesh (a cube's two
+    faces of such a material: 12 -> 8 triangles), the frame's faces stay, an all-glass object
+    leaves the scene without an error, and what the preview cannot follow (a cut-out) stays
+    opaque with a warning naming it."""
+    res = blender("from pathlib import Path\n" + EXTRACT + SEE_THROUGH_CASES)
+    r = res.result
+    objects = r["objects"]
+    print(objects)
+    print(r["warnings"])
+    opacity = {"Opaque": 1.0, "Glass": 0.0, "MetalGlass": 1.0, "HalfGlass": 0.5, "Faded": 0.2,
+               "Veiled": 0.7, "GlassBSDF": 0.0, "Refraction": 0.0, "Transparent": 0.0,
+               "Translucent": 1.0, "MixFade": 0.2, "MixFadeFlipped": 0.8, "ShadowTrick": 0.0,
+               "CameraTrick": 1.0, "CutOut": 1.0}
+    assert "Pane" not in objects
+    for name, want in opacity.items():
+        tris, verts, top, normals, ids, used, opacities, base = objects[name]
+        assert abs(opacities[1] - want) < 1e-6, (name, opacities)
+        clear = want <= 0.5
+        assert tris == (8 if clear else 12), name
+        assert normals == ids == tris and top == verts - 1, name   # every vertex kept is used
+        assert verts == 8 and used == ([0] if clear else [0, 1]), name
+        if name.startswith("Mix") or name.endswith("Trick") or name in ("Glass", "Faded"):
+            assert np.allclose(base, (0.2, 0.4, 0.6)), (name, base)  # the Principled side's
+    messages = {who: m for who, m in r["warnings"]}
+    assert "cut-outs are not supported" in messages["CutOut"], messages
+    assert "Translucent" in messages and "viewport display colour" in messages["Translucent"]
+    assert not any(n in messages for n in ("Glass", "GlassBSDF", "ShadowTrick", "MixFade", "Pane"))
