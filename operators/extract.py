@@ -10,7 +10,10 @@ same geometry share them, and the bake's content hash then bakes them once.
 Materials become `lumen_addon.materials.Material`s the way Workbench and the cards need them:
 a Principled BSDF feeding the active Material Output gives Base Color, Emission Color and
 Emission Strength, each a value or an Image Texture linked straight to the socket (through
-reroutes). Anything else falls back to the material's viewport display colour. Nothing here
+reroutes); a Diffuse BSDF its Color, an Emission shader its Color and Strength, Mix and Add
+Shaders of these their weighted sum (_Closure), and glass, Alpha and Transparent BSDFs an
+opacity (see-through faces are left out: clear_faces). Anything else falls back to the
+material's viewport display colour. Nothing here
 raises for bad materials: every fallback is recorded as a warning naming the object and the
 material, and `extract_scene` returns those warnings for the operator to report.
 
@@ -117,24 +120,38 @@ def _rgb(socket):
 
 
 def material_emits(mat) -> bool:
-    """Whether `mat` emits as the bake reads it (its Principled BSDF's Emission Strength, and an
-    Emission Color above black or an Image Texture linked to it), without reading any image:
+    """Whether `mat` emits as the bake reads it (a Principled BSDF's Emission Strength or an
+    Emission shader's Strength, with a colour above black or an Image Texture linked to it,
+    also inside the Mix and Add Shaders the conversion follows), without reading any image:
     cheap enough for the N-panel's estimate (bake.too_small_for_cards keeps an emitter's cards)."""
     tree = getattr(mat, "node_tree", None)
     if tree is None:
         return False
     out = tree.get_output_node('EEVEE') or tree.get_output_node('CYCLES')
-    src = _follow(out.inputs["Surface"]) if out is not None else None
-    if src is None or src[0].type != 'BSDF_PRINCIPLED':
+    return _emits(_follow(out.inputs["Surface"]) if out is not None else None, 0)
+
+
+def _emits(src, depth: int) -> bool:
+    if src is None or depth > MAX_SHADER_DEPTH:
         return False
     node = src[0]
-    if float(node.inputs["Emission Strength"].default_value) == 0.0:
+    if node.type in ('MIX_SHADER', 'ADD_SHADER'):
+        first = 1 if node.type == 'MIX_SHADER' else 0
+        return any(_emits(_follow(node.inputs[i]), depth + 1) for i in (first, first + 1))
+    names = EMISSION_INPUTS.get(node.type)
+    if names is None or float(node.inputs[names[1]].default_value) == 0.0:
         return False
-    socket = node.inputs["Emission Color"]
+    socket = node.inputs[names[0]]
     linked = _follow(socket)
     if linked is not None and linked[0].type == 'TEX_IMAGE' and linked[0].image is not None:
         return True
     return max(_rgb(socket)) > 0.0
+
+
+# The emitting shaders' (colour, strength) inputs
+EMISSION_INPUTS = {'BSDF_PRINCIPLED': ("Emission Color", "Emission Strength"),
+                   'EMISSION': ("Color", "Strength")}
+MAX_SHADER_DEPTH = 16     # Mix and Add Shaders followed at most this deep
 
 
 # Shaders that let light and the camera through (Cycles: transmission or transparency); a
@@ -206,6 +223,84 @@ class MaterialInfo:
         self.uv_maps = list(uv_maps)    # UV map names the textures use (None: active render)
         self.textured = textured
         self.warnings = list(warnings)
+
+
+@dataclasses.dataclass
+class _Closure:
+    """What the preview keeps of a shader: the light it reflects diffusely (`reflect`: colour x
+    the share of light that reaches it, so that mixing adds), its base texture, its emission,
+    its opacity (the share of light it stops) and the warnings and UV maps on the way."""
+    reflect: tuple = (0.0, 0.0, 0.0)
+    base_tex: object = None
+    base: tuple = (0.0, 0.0, 0.0)          # the colour of the part that carries base_tex
+    emission: tuple = (0.0, 0.0, 0.0)
+    strength: float = 0.0
+    emit_tex: object = None
+    opacity: float = 1.0
+    uv_maps: list = dataclasses.field(default_factory=list)
+    warnings: list = dataclasses.field(default_factory=list)
+    share: float = 1.0                      # the weight of the part that carries base_tex
+
+    def set_base(self, rgb, tex, uv_map, notes, weight: float):
+        self.reflect = tuple(weight * float(x) for x in rgb)
+        self.base, self.base_tex = tuple(map(float, rgb)), tex
+        self.warnings += notes
+        if tex is not None:
+            self.uv_maps.append(uv_map)
+
+    @staticmethod
+    def combine(sides, weights, opacity):
+        out = _Closure(opacity=float(opacity))
+        out.reflect = tuple(float(sum(w * s.reflect[k] for s, w in zip(sides, weights)))
+                            for k in range(3))
+        for s in sides:
+            out.uv_maps += [u for u in s.uv_maps if u not in out.uv_maps]
+            out.warnings += s.warnings
+        textured = [(w * s.share, s) for s, w in zip(sides, weights) if s.base_tex is not None]
+        if textured:
+            share, s = max(textured, key=lambda x: x[0])
+            out.base_tex, out.base, out.share = s.base_tex, s.base, share
+            if any(w > 0.0 and o is not s and max(o.reflect) > 0.0
+                   for o, w in zip(sides, weights)):
+                out.warnings.append("a Mix or Add Shader blends a texture with another "
+                                    "surface's colour (not supported); using the texture")
+        lit = [(w * s.strength, s) for s, w in zip(sides, weights) if w * s.strength != 0.0]
+        emitted = [e for e in lit if e[1].emit_tex is not None]
+        if emitted:
+            out.strength, src = max(emitted, key=lambda x: abs(x[0]))
+            out.emit_tex, out.emission = src.emit_tex, src.emission
+            if len(lit) > 1:
+                out.warnings.append("a Mix or Add Shader blends an emission texture with other "
+                                    "emission (not supported); using the texture")
+        elif lit:
+            out.strength = float(sum(x for x, _ in lit))
+            out.emission = tuple(float(sum(x * s.emission[k] for x, s in lit) / out.strength)
+                                 if out.strength else 0.0 for k in range(3))
+        return out
+
+    @staticmethod
+    def mix(a, b, fac):
+        f = min(max(float(fac), 0.0), 1.0)
+        return _Closure.combine((a, b), (1.0 - f, f), (1.0 - f) * a.opacity + f * b.opacity)
+
+    @staticmethod
+    def add(a, b):
+        clear = min((1.0 - a.opacity) + (1.0 - b.opacity), 1.0)
+        return _Closure.combine((a, b), (1.0, 1.0), 1.0 - clear)
+
+    def info(self, mat):
+        """The MaterialInfo: the base colour is what the opaque part reflects (reflect /
+        opacity; a texture's part keeps its texture), clamped to 1."""
+        if self.base_tex is not None:
+            base = self.base
+        elif self.opacity > 1e-6:
+            base = tuple(min(max(x / self.opacity, 0.0), 1.0) for x in self.reflect)
+        else:                                   # all clear: its faces are left out
+            base = self.base if max(self.base) > 0.0 else _display_colour(mat)
+        material = Material(name=mat.name, base_color=base, base_color_texture=self.base_tex,
+                            emission_color=self.emission, emission_strength=self.strength,
+                            emission_texture=self.emit_tex, opacity=float(self.opacity))
+        return MaterialInfo(material, self.uv_maps, bool(self.uv_maps), self.warnings)
 
 
 class Extractor:
@@ -307,76 +402,88 @@ class Extractor:
             return MaterialInfo(fallback, warnings=["has nothing connected to the Material "
                                                     "Output's Surface; using its viewport "
                                                     "display colour"])
-        node = src[0]
-        if node.type in CLEAR_SHADERS:
-            return MaterialInfo(dataclasses.replace(fallback, opacity=0.0))
-        if node.type == 'MIX_SHADER':
-            mixed = self._mix_shader(mat, node)
-            if mixed is not None:
-                return mixed
-        if node.type != 'BSDF_PRINCIPLED':
-            what = (f"node group '{node.node_tree.name}'" if node.type == 'GROUP' and node.node_tree
-                    else f"a {node.bl_label} node")
-            return MaterialInfo(fallback, warnings=[f"surface is {what}, not a Principled BSDF; "
-                                                    f"using its viewport display colour"])
-        return self._principled(mat, node)
+        closure, why = self._shader(mat, src[0], 0)
+        if closure is None:
+            return MaterialInfo(fallback, warnings=[why])
+        return closure.info(mat)
 
-    def _principled(self, mat, node):
-        warnings, uv_maps = [], []
-        base_socket = node.inputs["Base Color"]
-        base_color = _rgb(base_socket)
-        base_tex, uv_map, notes, unsupported = self._linked_texture(base_socket, "Base Color")
+    def _shader(self, mat, node, depth):
+        """(_Closure of the shader `node`, None) or (None, why it is not read): a Principled,
+        Diffuse or Emission shader, a clear one (CLEAR_SHADERS) or a Mix or Add Shader of
+        those."""
+        kind = node.type
+        if kind == 'BSDF_PRINCIPLED':
+            return self._principled(mat, node), None
+        if kind == 'BSDF_DIFFUSE':
+            c = _Closure()
+            c.set_base(*self._colour(mat, node.inputs["Color"], "Color"), weight=1.0)
+            return c, None
+        if kind == 'EMISSION':
+            c = _Closure(reflect=(0.0, 0.0, 0.0))
+            self._emission(c, node.inputs["Color"], node.inputs["Strength"], "Color", "Strength")
+            return c, None
+        if kind in CLEAR_SHADERS:
+            return _Closure(reflect=(0.0, 0.0, 0.0), opacity=0.0), None
+        if kind in ('MIX_SHADER', 'ADD_SHADER') and depth < MAX_SHADER_DEPTH:
+            first = 1 if kind == 'MIX_SHADER' else 0
+            sides = []
+            for i in (first, first + 1):
+                src = _follow(node.inputs[i])
+                if src is None:                # an empty input: no light from it, opaque black
+                    sides.append(_Closure(reflect=(0.0, 0.0, 0.0)))
+                    continue
+                side, why = self._shader(mat, src[0], depth + 1)
+                if side is None:
+                    return None, why
+                sides.append(side)
+            if kind == 'ADD_SHADER':
+                return _Closure.add(*sides), None
+            fac, notes = mix_factor(node)
+            if fac is None:                     # a cut-out: the side that is not clear
+                fac = 1.0 if sides[0].opacity < sides[1].opacity else 0.0
+            mixed = _Closure.mix(sides[0], sides[1], fac)
+            mixed.warnings += notes
+            return mixed, None
+        what = (f"node group '{node.node_tree.name}'" if kind == 'GROUP' and node.node_tree
+                else f"a {node.bl_label} node")
+        return None, (f"surface is {what}, not a Principled, Diffuse or Emission shader (or a "
+                      f"mix of them); using its viewport display colour")
+
+    def _colour(self, mat, socket, label):
+        """(rgb, texture or None, UV map, warnings) of a colour socket: its value or an Image
+        Texture linked straight to it; else the material's viewport display colour."""
+        rgb = _rgb(socket)
+        tex, uv_map, notes, unsupported = self._linked_texture(socket, label)
         if unsupported:
-            base_color = _display_colour(mat)
+            rgb = _display_colour(mat)
             notes[-1] += "; using its viewport display colour"
-        warnings += notes
-        if base_tex is not None:
-            uv_maps.append(uv_map)
+        return rgb, tex, uv_map, notes
 
-        strength_socket = node.inputs["Emission Strength"]
+    def _emission(self, c, colour_socket, strength_socket, colour_label, strength_label):
         strength = float(strength_socket.default_value)
         if _follow(strength_socket) is not None:
-            warnings.append(f"Emission Strength is driven by a node (not supported); using its "
-                            f"value {strength:g}")
-        emit_socket = node.inputs["Emission Color"]
-        emission, emit_tex = _rgb(emit_socket), None
+            c.warnings.append(f"{strength_label} is driven by a node (not supported); using "
+                              f"its value {strength:g}")
+        c.emission, c.strength = _rgb(colour_socket), strength
         if strength != 0.0:
-            emit_tex, uv_map, notes, unsupported = self._linked_texture(emit_socket, "Emission Color")
+            tex, uv_map, notes, unsupported = self._linked_texture(colour_socket, colour_label)
             if unsupported:
-                notes[-1] += "; using the Emission Color value"
-            warnings += notes
-            if emit_tex is not None:
-                uv_maps.append(uv_map)
+                notes[-1] += f"; using the {colour_label} value"
+            c.warnings += notes
+            if tex is not None:
+                c.emit_tex = tex
+                c.uv_maps.append(uv_map)
 
+    def _principled(self, mat, node):
+        c = _Closure()
         opacity, notes = principled_opacity(node)
-        warnings += notes
-        material = Material(name=mat.name, base_color=base_color, base_color_texture=base_tex,
-                            emission_color=emission, emission_strength=strength,
-                            emission_texture=emit_tex, opacity=opacity)
-        return MaterialInfo(material, uv_maps, bool(uv_maps), warnings)
-
-    def _mix_shader(self, mat, node):
-        """A Mix Shader of a clear shader (Transparent, Glass, Refraction) and a Principled BSDF
-        or another clear one, the usual way to make glass or a fade in Cycles: the Principled
-        side's colours and the mix's opacity. None for any other mix (the caller falls back)."""
-        sides = [_follow(node.inputs[1]), _follow(node.inputs[2])]
-        kinds = [s[0].type if s is not None else None for s in sides]
-        if not any(k in CLEAR_SHADERS for k in kinds) or not all(
-                k in CLEAR_SHADERS or k == 'BSDF_PRINCIPLED' for k in kinds):
-            return None
-        fac, notes = mix_factor(node)
-        if fac is None:                   # a cut-out (a texture drives the mix): drawn opaque
-            fac = 1.0 if kinds[0] in CLEAR_SHADERS else 0.0
-        if 'BSDF_PRINCIPLED' in kinds:
-            info = self._principled(mat, sides[kinds.index('BSDF_PRINCIPLED')][0])
-        else:
-            info = MaterialInfo(Material(name=mat.name, base_color=_display_colour(mat)))
-        own = info.material.opacity
-        opacity = sum(w * (0.0 if k in CLEAR_SHADERS else own)
-                      for w, k in zip((1.0 - fac, fac), kinds))
-        info.material = dataclasses.replace(info.material, opacity=float(opacity))
-        info.warnings += notes
-        return info
+        rgb, tex, uv_map, base_notes = self._colour(mat, node.inputs["Base Color"], "Base Color")
+        c.set_base(rgb, tex, uv_map, base_notes, weight=opacity)
+        self._emission(c, node.inputs["Emission Color"], node.inputs["Emission Strength"],
+                       "Emission Color", "Emission Strength")
+        c.opacity = opacity
+        c.warnings += notes
+        return c
 
     def _linked_texture(self, socket, label):
         """(array, UV map, warnings, unsupported) for an Image Texture linked straight to socket.

@@ -182,8 +182,8 @@ gone.filepath = MISSING
 gone.reload()
 lost = cube("Lost", location=(2, 0, 0))
 lost.data.materials.append(textured("Lost Texture", gone))
-# 3. non-Principled surfaces: a Diffuse BSDF, a node group, nothing connected
-diffuse = principled("Diffuse Only"); replace_surface(diffuse, "ShaderNodeBsdfDiffuse")
+# 3. surfaces the conversion does not read: a Toon BSDF, a node group, nothing connected
+diffuse = principled("Toon Only"); replace_surface(diffuse, "ShaderNodeBsdfToon")
 diffuse.diffuse_color = (0.1, 0.9, 0.2, 1.0)
 group = principled("Grouped")
 gtree = bpy.data.node_groups.new("My Shader Group", "ShaderNodeTree")
@@ -244,12 +244,13 @@ emit(warnings=warnings, no_uv=[objects["NoUV"].uvs is None, mats("NoUV")],
     warned("Lost (and 1 more objects)", "material 'Lost Texture'", "image 'gone.png'",
            "no pixel data", str(tmp_path / "gone.png"), "Base Color value")
     assert r["lost"] == [["Lost Texture", [0.25, 0.5, 0.75], True]]
-    # 3. anything but a Principled BSDF (or a texture) feeding it: the viewport display colour
-    warned("Odd", "material 'Diffuse Only'", "Diffuse BSDF", "display colour")
+    # 3. a shader the conversion does not read (or something but a texture feeding one): the
+    # viewport display colour
+    warned("Odd", "material 'Toon Only'", "Toon BSDF", "display colour")
     warned("Odd", "material 'Grouped'", "node group 'My Shader Group'", "display colour")
     warned("Odd", "material 'Unlinked'", "Surface", "display colour")
     warned("Odd", "material 'Ramp'", "Base Color", "Color Ramp", "display colour")
-    assert r["odd"] == [["Diffuse Only", [0.1, 0.9, 0.2], True], ["Grouped", [0.6, 0.1, 0.1], True],
+    assert r["odd"] == [["Toon Only", [0.1, 0.9, 0.2], True], ["Grouped", [0.6, 0.1, 0.1], True],
                         ["Unlinked", [0.3, 0.3, 0.9], True], ["Ramp", [0.4, 0.4, 0.0], True]]
     # 4. an empty slot: default grey
     warned("Holes", "material slot 2 is empty", "grey")
@@ -372,9 +373,115 @@ def test_see_through_materials_leave_their_faces_out(blender):
         assert tris == (8 if clear else 12), name
         assert normals == ids == tris and top == verts - 1, name   # every vertex kept is used
         assert verts == 8 and used == ([0] if clear else [0, 1]), name
-        if name.startswith("Mix") or name.endswith("Trick") or name in ("Glass", "Faded"):
+        if name in ("MixFade", "MixFadeFlipped", "CameraTrick", "Glass", "Faded"):
             assert np.allclose(base, (0.2, 0.4, 0.6)), (name, base)  # the Principled side's
     messages = {who: m for who, m in r["warnings"]}
     assert "cut-outs are not supported" in messages["CutOut"], messages
     assert "Translucent" in messages and "viewport display colour" in messages["Translucent"]
     assert not any(n in messages for n in ("Glass", "GlassBSDF", "ShadowTrick", "MixFade", "Pane"))
+
+
+SHADER_MIXES = """
+from lumen_gi.operators.extract import material_emits
+empty_scene()
+img, px = checker_png(Path("checker.png").resolve())
+
+def tree(name):
+    m = principled(name)
+    nodes = m.node_tree.nodes
+    nodes.remove(nodes["Principled BSDF"])
+    return m, nodes, m.node_tree.links
+
+def out(m, node):
+    m.node_tree.links.new(node.outputs[0], m.node_tree.nodes["Material Output"].inputs["Surface"])
+
+def diffuse(nodes, rgb):
+    d = nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (*rgb, 1.0)
+    return d
+
+def emission(nodes, rgb, strength):
+    e = nodes.new("ShaderNodeEmission")
+    e.inputs["Color"].default_value = (*rgb, 1.0)
+    e.inputs["Strength"].default_value = strength
+    return e
+
+def combine(m, kind, a, b, fac=None):
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    node = nodes.new(kind)
+    first = 1 if fac is not None else 0
+    links.new(a.outputs[0], node.inputs[first])
+    links.new(b.outputs[0], node.inputs[first + 1])
+    if fac is not None:
+        node.inputs[0].default_value = fac
+    return node
+
+mats = {}
+m, nodes, links = tree("Diffuse"); out(m, diffuse(nodes, (0.1, 0.5, 0.9))); mats["Diffuse"] = m
+m, nodes, links = tree("DiffuseTex")
+d = diffuse(nodes, (0.1, 0.5, 0.9))
+tex = nodes.new("ShaderNodeTexImage"); tex.image = img
+links.new(tex.outputs["Color"], d.inputs["Color"]); out(m, d); mats["DiffuseTex"] = m
+m, nodes, links = tree("Lamp"); out(m, emission(nodes, (1.0, 0.5, 0.25), 5.0)); mats["Lamp"] = m
+m, nodes, links = tree("LampTex")
+e = emission(nodes, (1.0, 1.0, 1.0), 2.0)
+tex = nodes.new("ShaderNodeTexImage"); tex.image = img
+links.new(tex.outputs["Color"], e.inputs["Color"]); out(m, e); mats["LampTex"] = m
+m, nodes, links = tree("Half")
+out(m, combine(m, "ShaderNodeMixShader", diffuse(nodes, (0.8, 0.0, 0.0)),
+               diffuse(nodes, (0.0, 0.0, 0.8)), fac=0.25)); mats["Half"] = m
+m, nodes, links = tree("GlowingWall")
+out(m, combine(m, "ShaderNodeAddShader", diffuse(nodes, (0.6, 0.6, 0.6)),
+               emission(nodes, (0.0, 1.0, 0.0), 3.0))); mats["GlowingWall"] = m
+m, nodes, links = tree("DimLamp")
+out(m, combine(m, "ShaderNodeMixShader", diffuse(nodes, (0.5, 0.5, 0.5)),
+               emission(nodes, (1.0, 1.0, 1.0), 4.0), fac=0.5)); mats["DimLamp"] = m
+m, nodes, links = tree("Toon"); out(m, nodes.new("ShaderNodeBsdfToon")); mats["Toon"] = m
+equivalent = principled("PrincipledLamp", base=(0.0, 0.0, 0.0), emission=(1.0, 0.5, 0.25),
+                        strength=5.0)
+mats["PrincipledLamp"] = equivalent
+for i, (name, mat) in enumerate(mats.items()):
+    ob = cube(name, location=(3.0 * i, 0.0, 0.0))
+    ob.data.materials.append(mat)
+objects, warnings = extract()
+def fields(o):
+    m = o.materials[0]
+    return [list(m.base_color), m.base_color_texture is not None, list(m.emission_color),
+            m.emission_strength, m.emission_texture is not None, m.opacity, o.uvs is not None]
+emit(mats={n: fields(objects[n]) for n in mats}, warnings=warnings,
+     emits={n: material_emits(m) for n, m in mats.items()})
+"""
+
+
+def test_diffuse_emission_mix_and_add_shaders_are_read(blender):
+    """A Diffuse BSDF's Color, an Emission shader's Color and Strength (values or an Image
+    Texture), and Mix and Add Shaders of them, as Cycles weighs them: a lamp made with an
+    Emission shader is the same material as a black Principled BSDF emitting the same light
+    (before, such a lamp fell back to its grey display colour and lit nothing)."""
+    res = blender("from pathlib import Path\n" + EXTRACT + SHADER_MIXES)
+    r = res.result
+    m, emits = r["mats"], r["emits"]
+    print(m)
+    print(r["warnings"])
+
+    def close(a, b):
+        return np.allclose(a, b, atol=1e-6)
+
+    assert close(m["Diffuse"][0], (0.1, 0.5, 0.9)) and m["Diffuse"][3] == 0.0
+    assert m["DiffuseTex"][1] and m["DiffuseTex"][6]               # the texture, and UVs for it
+    assert m["Lamp"] == m["PrincipledLamp"]                        # the same material
+    assert close(m["Lamp"][0], 0.0) and close(m["Lamp"][2], (1.0, 0.5, 0.25))
+    assert m["Lamp"][3] == 5.0 and m["Lamp"][5] == 1.0
+    assert m["LampTex"][4] and m["LampTex"][3] == 2.0 and m["LampTex"][6]
+    assert close(m["Half"][0], (0.6, 0.0, 0.2))                    # 0.75 red + 0.25 blue
+    assert close(m["GlowingWall"][0], 0.6) and close(m["GlowingWall"][2], (0.0, 1.0, 0.0))
+    assert m["GlowingWall"][3] == 3.0
+    # half a diffuse grey, half an emitter: half the albedo and half the light
+    assert close(m["DimLamp"][0], 0.25) and close(m["DimLamp"][2], 1.0)
+    assert m["DimLamp"][3] == 2.0
+    assert emits == {"Diffuse": False, "DiffuseTex": False, "Lamp": True, "LampTex": True,
+                     "Half": False, "GlowingWall": True, "DimLamp": True, "Toon": False,
+                     "PrincipledLamp": True}
+    messages = {who: what for who, what in r["warnings"]}
+    assert list(messages) == ["Toon"], messages
+    assert "Toon BSDF" in messages["Toon"] and "display colour" in messages["Toon"]
