@@ -24,6 +24,7 @@ depsgraph.updates (and everything on its first frame: F12 makes a new one per re
 from __future__ import annotations
 
 import dataclasses
+import threading
 
 import numpy as np
 
@@ -303,14 +304,40 @@ class _Closure:
         return MaterialInfo(material, self.uv_maps, bool(self.uv_maps), self.warnings)
 
 
+DISPLAY_COLOUR = "using its viewport display colour"
+_DRY_IMAGE = np.zeros((1, 1, 3), np.float32)
+
+
+def bpy_materials():
+    import bpy
+    return list(bpy.data.materials)
+
+
+def needs_capture(mat) -> bool:
+    """Whether the extraction reads `mat` only in part (a shader or a colour input it does not
+    follow), so that its colours come from material_capture. Loads no image."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None:
+        return False
+    out = tree.get_output_node('EEVEE') or tree.get_output_node('CYCLES')
+    src = _follow(out.inputs["Surface"]) if out is not None else None
+    if src is None:
+        return False
+    ex = Extractor(dry=True)
+    closure, _why = ex._shader(mat, src[0], 0)
+    return closure is None or bool(ex._unread)
+
+
 class Extractor:
     """One extraction pass: caches converted materials and images (textures are shared) and
     collects warnings as {message: [object names]}."""
 
-    def __init__(self):
+    def __init__(self, dry: bool = False):
         self.materials = {}     # material pointer -> MaterialInfo
         self.images = {}        # (image pointer, output) -> (array or None, reason)
         self._warnings = {}
+        self._unread = []       # the material being converted: what it could not read
+        self.dry = dry          # only whether materials can be read: no image loaded, no capture
 
     # warnings ----------------------------------------------------------------------------------
 
@@ -331,6 +358,8 @@ class Extractor:
 
     def image_array(self, image, output="Color"):
         """float32 (H, W, C) linear pixels of an image, row 0 at v = 0; or (None, reason)."""
+        if self.dry:
+            return _DRY_IMAGE, None
         image = image.original if getattr(image, "is_evaluated", False) else image
         key = (image.as_pointer(), output)
         if key not in self.images:
@@ -402,10 +431,33 @@ class Extractor:
             return MaterialInfo(fallback, warnings=["has nothing connected to the Material "
                                                     "Output's Surface; using its viewport "
                                                     "display colour"])
+        self._unread = []
         closure, why = self._shader(mat, src[0], 0)
-        if closure is None:
-            return MaterialInfo(fallback, warnings=[why])
+        if closure is None or self._unread:
+            reason = why if closure is None else "; ".join(self._unread)
+            means = None if self.dry else self._captured(mat)
+            if means is not None:
+                return MaterialInfo(
+                    Material(name=mat.name, base_color=means.albedo,
+                             emission_color=means.emission,
+                             emission_strength=1.0 if max(means.emission) > 0.0 else 0.0,
+                             opacity=means.opacity),
+                    warnings=[f"{reason}; using its mean colours, rendered by Cycles"])
+            if closure is None:
+                return MaterialInfo(fallback, warnings=[f"{reason}; {DISPLAY_COLOUR}"])
+            closure.warnings += [f"{r}; {DISPLAY_COLOUR}" for r in self._unread]
         return closure.info(mat)
+
+    def _captured(self, mat):
+        """material_capture.Means of a material read only in part, rendered with every other
+        material in the file that needs it and is not remembered (one Cycles image), or None."""
+        from . import material_capture
+
+        hit = material_capture.remembered(mat)
+        if hit is not None or threading.current_thread() is not threading.main_thread():
+            return hit            # a job thread (the UI's F12) cannot render: display colour
+        others = [m for m in bpy_materials() if m != mat and m.users and needs_capture(m)]
+        return material_capture.means(mat, others)
 
     def _shader(self, mat, node, depth):
         """(_Closure of the shader `node`, None) or (None, why it is not read): a Principled,
@@ -447,16 +499,16 @@ class Extractor:
         what = (f"node group '{node.node_tree.name}'" if kind == 'GROUP' and node.node_tree
                 else f"a {node.bl_label} node")
         return None, (f"surface is {what}, not a Principled, Diffuse or Emission shader (or a "
-                      f"mix of them); using its viewport display colour")
+                      f"mix of them)")
 
     def _colour(self, mat, socket, label):
         """(rgb, texture or None, UV map, warnings) of a colour socket: its value or an Image
         Texture linked straight to it; else the material's viewport display colour."""
         rgb = _rgb(socket)
         tex, uv_map, notes, unsupported = self._linked_texture(socket, label)
-        if unsupported:
+        if unsupported:                   # _convert_material says what it used instead
             rgb = _display_colour(mat)
-            notes[-1] += "; using its viewport display colour"
+            self._unread.append(notes.pop())
         return rgb, tex, uv_map, notes
 
     def _emission(self, c, colour_socket, strength_socket, colour_label, strength_label):

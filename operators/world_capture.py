@@ -50,7 +50,7 @@ def _value(v, depth=0):
             return ("Image", v.name, v.filepath, v.source, v.is_dirty,
                     getattr(v, "frame_duration", 0))
         if hasattr(v, "nodes"):
-            return ("Tree", _tree_signature(v))
+            return ("Tree", tree_signature(v))
         if isinstance(v, bpy.types.ID) or depth >= 2:
             return (v.bl_rna.identifier, getattr(v, "name", ""))
         # a node's own struct (an Environment Texture's texture_mapping rotation, a colour
@@ -64,7 +64,7 @@ def _value(v, depth=0):
 _BASE = None
 
 
-def _tree_signature(tree) -> tuple:
+def tree_signature(tree) -> tuple:
     global _BASE
     if _BASE is None:
         _BASE = {p.identifier for p in bpy.types.Node.bl_rna.properties}
@@ -87,7 +87,7 @@ def signature(world) -> str:
     if world is None:
         return "none"
     tree = world.node_tree if _uses_nodes(world) else None
-    parts = (tuple(world.color), None if tree is None else _tree_signature(tree))
+    parts = (tuple(world.color), None if tree is None else tree_signature(tree))
     return hashlib.sha1(repr(parts).encode()).hexdigest()[:16]
 
 
