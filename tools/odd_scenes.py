@@ -390,6 +390,52 @@ def dense_scatter(bpy):
 
 
 @case
+def glass_and_shader_trees(bpy):
+    """A glass pane in one object with its frame, an all-glass ball, a node-group material, a
+    Toon BSDF, an Add Shader lamp and a Mix Shader with nothing in one input."""
+    scene = base(bpy)
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 1.0))
+    window = bpy.context.object
+    glass = bpy.data.materials.new("Glass")
+    glass.use_nodes = True
+    glass.node_tree.nodes["Principled BSDF"].inputs["Transmission Weight"].default_value = 1.0
+    window.data.materials.append(bpy.data.materials.new("Frame"))
+    window.data.materials.append(glass)
+    window.data.polygons.foreach_set("material_index", [0, 0, 0, 0, 1, 1])
+    window.data.update()
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(1.5, 0.0, 0.4))
+    bpy.context.object.data.materials.append(glass)
+    group_tree = bpy.data.node_groups.new("Asset Shader", "ShaderNodeTree")
+    group_tree.interface.new_socket("Shader", in_out='OUTPUT', socket_type='NodeSocketShader')
+    inner = group_tree.nodes.new("ShaderNodeBsdfPrincipled")
+    noise = group_tree.nodes.new("ShaderNodeTexNoise")
+    group_tree.links.new(noise.outputs["Color"], inner.inputs["Base Color"])
+    group_tree.links.new(inner.outputs[0], group_tree.nodes.new("NodeGroupOutput").inputs[0])
+    for i, kind in enumerate(("GROUP", "ShaderNodeBsdfToon", "ADD", "MIX")):
+        mat = bpy.data.materials.new(f"Tree{i}")
+        mat.use_nodes = True
+        nodes, links = mat.node_tree.nodes, mat.node_tree.links
+        out = nodes["Material Output"].inputs["Surface"]
+        if kind == "GROUP":
+            node = nodes.new("ShaderNodeGroup")
+            node.node_tree = group_tree
+        elif kind == "ADD":
+            node = nodes.new("ShaderNodeAddShader")
+            em = nodes.new("ShaderNodeEmission")
+            em.inputs["Strength"].default_value = 3.0
+            links.new(nodes["Principled BSDF"].outputs[0], node.inputs[0])
+            links.new(em.outputs[0], node.inputs[1])
+        elif kind == "MIX":
+            node = nodes.new("ShaderNodeMixShader")
+            links.new(nodes["Principled BSDF"].outputs[0], node.inputs[1])
+        else:
+            node = nodes.new(kind)
+        links.new(node.outputs[0], out)
+        bpy.ops.mesh.primitive_cube_add(size=0.5, location=(-1.5 + 0.7 * i, 1.5, 0.25))
+        bpy.context.object.data.materials.append(mat)
+
+
+@case
 def factory_startup(bpy):
     # Blender's own start-up scene: the cube, its 1000 W point light, the camera; no floor
     bpy.ops.wm.read_factory_settings(use_empty=False)
