@@ -128,7 +128,8 @@ def scene_triangles(objects):
     pos, nor, albedo, emit [3T, 3], uv [3T, 2] and the texture arrays albedo_tex / emit_tex (or
     None) that the group's fragments sample. Triangles are grouped by (albedo texture, emission
     texture) identity; untextured triangles all go to one group. With an emission texture the
-    per-corner emit value is the strength (the shader multiplies), as materials.shade does."""
+    per-corner emit value is the strength (the shader multiplies), as materials.shade does. A
+    vertex_colors material's per-corner albedo is the object's `colors`."""
     groups = {}
     for ob in objects:
         tris = np.asarray(ob.triangles, np.int64)
@@ -152,6 +153,8 @@ def scene_triangles(objects):
         uvs = getattr(ob, "uvs", None)
         uv = (np.asarray(uvs, np.float64).reshape(-1, 2) if uvs is not None
               else np.zeros((3 * t, 2)))
+        colors = getattr(ob, "colors", None)            # (T, 3, 3): Material.vertex_colors
+        colors = np.asarray(colors, np.float64) if colors is not None else None
         from ..lumen_addon.materials import Material
         mats = list(ob.materials) or [Material()]
         ids = (np.clip(np.asarray(ob.material_ids, np.int64), 0, len(mats) - 1)
@@ -160,7 +163,8 @@ def scene_triangles(objects):
             sel = np.flatnonzero(ids == k)
             if not sel.size:
                 continue
-            a_tex = mt.base_color_texture if uvs is not None else None
+            vertex = colors is not None and getattr(mt, "vertex_colors", False)
+            a_tex = mt.base_color_texture if uvs is not None and not vertex else None
             e_tex = (mt.emission_texture if uvs is not None and mt.emission_strength
                      else None)
             alb = np.asarray(mt.base_color, np.float64)[:3]
@@ -176,7 +180,8 @@ def scene_triangles(objects):
             g["pos"].append(p[corners])
             g["nor"].append(n[corners])
             g["uv"].append(uv[corners])
-            g["albedo"].append(np.tile(alb, (len(corners), 1)))
+            g["albedo"].append(colors[sel].reshape(-1, 3) if vertex
+                               else np.tile(alb, (len(corners), 1)))
             g["emit"].append(np.tile(emi, (len(corners), 1)))
     out = []
     for g in groups.values():

@@ -147,7 +147,7 @@ class MeshBatches:
         local = SimpleNamespace(vertices=data.vertices, triangles=data.triangles,
                                 matrix_world=np.eye(4), normals=data.normals, uvs=data.uvs,
                                 material_ids=data.material_ids, materials=data.materials,
-                                camera_visible=True)
+                                colors=getattr(data, "colors", None), camera_visible=True)
         shader = instanced_shader()
         groups, triangles = [], 0
         for g in scene_triangles([local]):

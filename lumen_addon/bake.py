@@ -50,6 +50,8 @@ class ObjectInput:
     uvs: Optional[np.ndarray] = None           # (T, 3, 2) per-corner UVs of the texture UV map
     material_ids: Optional[np.ndarray] = None  # (T,) index into `materials`
     materials: list = field(default_factory=list)   # [materials.Material]; empty: plain grey
+    colors: Optional[np.ndarray] = None        # (T, 3, 3) per-corner linear RGB: the colour
+                                               # attribute of Material.vertex_colors materials
     # Seen by camera rays (Blender's Object > Visibility > Camera): the preview's G-buffer skips
     # it, its SDF and cards still block and bounce light. Not part of any bake hash.
     camera_visible: bool = True
@@ -153,7 +155,7 @@ def cards_hash(obj: ObjectInput, sdf_key: str, settings: BakeSettings, digests=N
     texture shared by many objects is hashed once."""
     digests = {} if digests is None else digests
     h = hashlib.sha1(sdf_key.encode())
-    for arr in (obj.normals, obj.uvs, obj.material_ids):
+    for arr in (obj.normals, obj.uvs, obj.material_ids, obj.colors):
         h.update(b"-" if arr is None else np.ascontiguousarray(arr).tobytes())
     for m in obj.materials:
         if id(m) not in digests:
@@ -348,7 +350,7 @@ def _bake_cards(todo: dict, settings: BakeSettings, previous, warnings, progress
         progress(0.3 * len(new) / max(len(todo), 1), obj.name)
         surface, attrs, notes = cardlib.prepare(obj.vertices, obj.triangles, obj.normals, obj.uvs,
                                                 obj.material_ids, obj.materials,
-                                                two_sided=obj.two_sided,
+                                                colors=obj.colors, two_sided=obj.two_sided,
                                                 orientation=orientation(mesh_key, obj))
         warnings.extend((obj.name, n) for n in notes)
         placed = cardlib.place_cards(surface, max_cards=settings.max_cards)

@@ -247,7 +247,8 @@ def set_resolution(cards, texel_density: float):
         c.resolution = (int(w), int(h))
 
 
-def capture(surface: _Surface, cards, normals=None, uvs=None, material_ids=None, materials=()):
+def capture(surface: _Surface, cards, normals=None, uvs=None, material_ids=None, materials=(),
+            colors=None):
     """Fill every card's layers with one Embree ray per texel."""
     for c in cards:
         w, h = c.resolution
@@ -280,7 +281,8 @@ def capture(surface: _Surface, cards, normals=None, uvs=None, material_ids=None,
         nrm = np.where((facing > 0)[:, None], -nrm, nrm)   # two-sided: the side the card sees
         uv = np.einsum("nk,nkj->nj", bary, uvs[pid]) if uvs is not None else None
         mid = material_ids[pid] if material_ids is not None else np.zeros(len(pid), np.int64)
-        albedo, emissive = shade(materials, mid, uv)
+        col = np.einsum("nk,nkj->nj", bary, colors[pid]) if colors is not None else None
+        albedo, emissive = shade(materials, mid, uv, col)
         c.albedo = np.zeros((h * w, 3), np.float32)
         c.normal = np.zeros((h * w, 3), np.float32)
         c.depth = np.zeros(h * w, np.float32)
@@ -325,18 +327,18 @@ def texel_coverage(surface: _Surface, cards, samples: int = 32768, seed: int = 1
 
 def bake_mesh_cards(vertices, triangles, *, texel_density: float = 20.0, normals=None, uvs=None,
                     material_ids=None, materials=None, max_cards: int = 32, two_sided: bool = False,
-                    samples: int = 16384, seed: int = 0) -> MeshCards:
+                    samples: int = 16384, seed: int = 0, colors=None) -> MeshCards:
     """Place, capture and measure the cards of one mesh (local space, metres).
 
-    normals (T,3,3), uvs (T,3,2), material_ids (T,), materials [Material]: optional surface
-    attributes; without materials the albedo is plain grey. texel_density: texels per metre
+    normals (T,3,3), uvs (T,3,2), material_ids (T,), materials [Material], colors (T,3,3):
+    optional surface attributes; without materials the albedo is plain grey. texel_density: texels per metre
     (each card side clamped to 4..512 texels). two_sided: both sides of every face are surface
     (foliage, sheets). Raises MeshError on meshes that cannot be baked.
     """
     if not (np.isfinite(texel_density) and texel_density > 0):
         raise MeshError(f"texel density must be a positive number, got {texel_density!r}")
     surface, attrs, warnings = prepare(vertices, triangles, normals, uvs, material_ids, materials,
-                                       samples, seed, two_sided)
+                                       samples, seed, two_sided, colors=colors)
     cards = place_cards(surface, max_cards=max_cards)
     set_resolution(cards, texel_density)
     capture(surface, cards, **attrs)
@@ -386,7 +388,7 @@ def enclosed_backs(v, t, which) -> np.ndarray:
 
 
 def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=16384, seed=0,
-            two_sided=False, orientation=None):
+            two_sided=False, orientation=None, colors=None):
     """Validate the mesh and its attributes; drop what is unusable with a warning.
 
     Inside-out faces are flipped as for the SDF (clean_mesh; orientation: orient_triangles of
@@ -409,6 +411,7 @@ def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=
 
     normals = rows(normals, (3, 3), "normals")
     uvs = rows(uvs, (3, 2), "UVs")
+    colors = rows(colors, (3, 3), "colour attribute")
     flip = mesh.flipped
     if flip.any():
         # Corners 1 and 2 swap with the winding; a flipped face's corner normals pointed inwards
@@ -416,6 +419,9 @@ def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=
         if uvs is not None:
             uvs = uvs.copy()
             uvs[flip] = uvs[flip][:, [0, 2, 1]]
+        if colors is not None:
+            colors = np.array(colors, copy=True)
+            colors[flip] = colors[flip][:, [0, 2, 1]]
         if normals is not None:
             normals = np.asarray(normals, np.float64).copy()
             nf = normals[flip][:, [0, 2, 1]]
@@ -433,4 +439,5 @@ def prepare(vertices, triangles, normals, uvs, material_ids, materials, samples=
     if open_faces is not None and open_faces.any():
         open_faces &= ~enclosed_backs(mesh.vertices, mesh.triangles, open_faces)
     surface = _Surface(mesh.vertices, mesh.triangles, samples, seed, two_sided, open_faces)
-    return surface, {"normals": normals, "uvs": uvs, "material_ids": material_ids, "materials": mats}, warnings
+    return surface, {"normals": normals, "uvs": uvs, "material_ids": material_ids, "materials": mats,
+                     "colors": colors}, warnings

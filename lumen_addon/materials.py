@@ -31,12 +31,15 @@ class Material:
     # operators/extract.py leaves out the faces of a material at or under SEE_THROUGH, so it is
     # not in the digest (the faces kept say it)
     opacity: float = 1.0
+    # the base colour is the mesh's colour attribute (per corner: ObjectInput.colors), as a
+    # Color Attribute node into Base Color makes it; base_color is unused then
+    vertex_colors: bool = False
 
     def digest(self) -> bytes:
         """Content hash input (textures included), for re-baking only what changed."""
         h = hashlib.sha1(repr((self.name, tuple(map(float, self.base_color)),
                                tuple(map(float, self.emission_color)),
-                               float(self.emission_strength))).encode())
+                               float(self.emission_strength), bool(self.vertex_colors))).encode())
         for tex in (self.base_color_texture, self.emission_texture):
             if tex is None:
                 h.update(b"-")
@@ -66,8 +69,11 @@ def sample_texture(tex: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return c[:, :3]
 
 
-def shade(materials, material_ids: np.ndarray, uv: Optional[np.ndarray]):
-    """Albedo and emission (N, 3) for hits with these material ids and UVs (None: no UV map)."""
+def shade(materials, material_ids: np.ndarray, uv: Optional[np.ndarray],
+          colors: Optional[np.ndarray] = None):
+    """Albedo and emission (N, 3) for hits with these material ids and UVs (None: no UV map);
+    colors (N, 3): the mesh's colour attribute at the hits, the albedo of vertex_colors
+    materials (None: their base_color)."""
     n = len(material_ids)
     albedo = np.empty((n, 3), np.float32)
     emissive = np.zeros((n, 3), np.float32)
@@ -77,7 +83,9 @@ def shade(materials, material_ids: np.ndarray, uv: Optional[np.ndarray]):
         sel = np.flatnonzero(ids == k)
         if not sel.size:
             continue
-        if m.base_color_texture is not None and uv is not None:
+        if m.vertex_colors and colors is not None:
+            albedo[sel] = colors[sel]
+        elif m.base_color_texture is not None and uv is not None:
             albedo[sel] = sample_texture(m.base_color_texture, uv[sel])
         else:
             albedo[sel] = np.asarray(m.base_color, np.float32)[:3]

@@ -219,11 +219,13 @@ class _Texture:
 class MaterialInfo:
     """A converted material: the Material, the UV map its textures use, and its warnings."""
 
-    def __init__(self, material, uv_maps=(), textured=False, warnings=()):
+    def __init__(self, material, uv_maps=(), textured=False, warnings=(), attribute=None):
         self.material = material
         self.uv_maps = list(uv_maps)    # UV map names the textures use (None: active render)
         self.textured = textured
         self.warnings = list(warnings)
+        self.attribute = attribute      # the colour attribute its base colour reads ("": the
+                                        # mesh's render colour attribute), or None
 
 
 @dataclasses.dataclass
@@ -241,10 +243,11 @@ class _Closure:
     uv_maps: list = dataclasses.field(default_factory=list)
     warnings: list = dataclasses.field(default_factory=list)
     share: float = 1.0                      # the weight of the part that carries base_tex
+    attr: object = None                     # a colour attribute's name in place of base_tex
 
-    def set_base(self, rgb, tex, uv_map, notes, weight: float):
+    def set_base(self, rgb, tex, uv_map, notes, attr, weight: float):
         self.reflect = tuple(weight * float(x) for x in rgb)
-        self.base, self.base_tex = tuple(map(float, rgb)), tex
+        self.base, self.base_tex, self.attr = tuple(map(float, rgb)), tex, attr
         self.warnings += notes
         if tex is not None:
             self.uv_maps.append(uv_map)
@@ -257,10 +260,11 @@ class _Closure:
         for s in sides:
             out.uv_maps += [u for u in s.uv_maps if u not in out.uv_maps]
             out.warnings += s.warnings
-        textured = [(w * s.share, s) for s, w in zip(sides, weights) if s.base_tex is not None]
+        textured = [(w * s.share, s) for s, w in zip(sides, weights)
+                    if s.base_tex is not None or s.attr is not None]
         if textured:
             share, s = max(textured, key=lambda x: x[0])
-            out.base_tex, out.base, out.share = s.base_tex, s.base, share
+            out.base_tex, out.attr, out.base, out.share = s.base_tex, s.attr, s.base, share
             if any(w > 0.0 and o is not s and max(o.reflect) > 0.0
                    for o, w in zip(sides, weights)):
                 out.warnings.append("a Mix or Add Shader blends a texture with another "
@@ -292,7 +296,7 @@ class _Closure:
     def info(self, mat):
         """The MaterialInfo: the base colour is what the opaque part reflects (reflect /
         opacity; a texture's part keeps its texture), clamped to 1."""
-        if self.base_tex is not None:
+        if self.base_tex is not None or self.attr is not None:
             base = self.base
         elif self.opacity > 1e-6:
             base = tuple(min(max(x / self.opacity, 0.0), 1.0) for x in self.reflect)
@@ -300,11 +304,65 @@ class _Closure:
             base = self.base if max(self.base) > 0.0 else _display_colour(mat)
         material = Material(name=mat.name, base_color=base, base_color_texture=self.base_tex,
                             emission_color=self.emission, emission_strength=self.strength,
-                            emission_texture=self.emit_tex, opacity=float(self.opacity))
-        return MaterialInfo(material, self.uv_maps, bool(self.uv_maps), self.warnings)
+                            emission_texture=self.emit_tex, opacity=float(self.opacity),
+                            vertex_colors=self.attr is not None)
+        return MaterialInfo(material, self.uv_maps, bool(self.uv_maps), self.warnings,
+                            attribute=self.attr)
 
 
 DISPLAY_COLOUR = "using its viewport display colour"
+# what a colour attribute's reflected light counts for in a Mix or Add Shader's colour (unknown
+# per material; the default albedo)
+ATTRIBUTE_MEAN = (0.8, 0.8, 0.8)
+
+
+def colour_attribute(linked):
+    """The name of the colour attribute a socket reads straight from a Color Attribute node
+    ("" for the mesh's render colour attribute) or an Attribute node's Color output (geometry
+    attributes); None otherwise."""
+    if linked is None:
+        return None
+    node, out = linked
+    if node.type == 'VERTEX_COLOR' and out.name == "Color":
+        return node.layer_name or ""
+    if node.type == 'ATTRIBUTE' and out.name == "Color" and node.attribute_type == 'GEOMETRY':
+        return node.attribute_name
+    return None
+
+
+def corner_colours(mesh, name, triangles, loops):
+    """(T, 3, 3) float32 linear RGB of the attribute `name` ("" the render colour attribute)
+    at each triangle corner, from its point, corner or face domain (byte colours linearised by
+    Blender); None when the mesh has no such attribute of a colour, float or vector type."""
+    if name:
+        layer = mesh.attributes.get(name)
+    else:                              # by name: an evaluated mesh may list them in another order
+        ca = mesh.color_attributes
+        default = getattr(ca, "default_color_name", "")
+        layer = ca.get(default) if default else None
+        if layer is None:
+            i = ca.render_color_index
+            layer = ca[i] if 0 <= i < len(ca) else ca.active_color
+    if layer is None:
+        return None
+    n = len(layer.data)
+    kind = layer.data_type
+    if kind in ('FLOAT_COLOR', 'BYTE_COLOR'):
+        vals = _read(layer.data, "color", n, np.float32, 4)[:, :3]
+    elif kind == 'FLOAT':
+        vals = np.repeat(_read(layer.data, "value", n, np.float32)[:, None], 3, axis=1)
+    elif kind == 'FLOAT_VECTOR':
+        vals = _read(layer.data, "vector", n, np.float32, 3)
+    else:
+        return None
+    if layer.domain == 'POINT':
+        return vals[triangles]
+    if layer.domain == 'CORNER':
+        return vals[loops]
+    if layer.domain == 'FACE':
+        poly = _read(mesh.loop_triangles, "polygon_index", len(mesh.loop_triangles), np.int32)
+        return np.repeat(vals[poly][:, None], 3, axis=1)
+    return None
 _DRY_IMAGE = np.zeros((1, 1, 3), np.float32)
 
 
@@ -502,14 +560,20 @@ class Extractor:
                       f"mix of them)")
 
     def _colour(self, mat, socket, label):
-        """(rgb, texture or None, UV map, warnings) of a colour socket: its value or an Image
-        Texture linked straight to it; else the material's viewport display colour."""
+        """(rgb, texture or None, UV map, warnings, colour attribute or None) of a colour
+        socket: its value, an Image Texture or a colour attribute (a Color Attribute node, an
+        Attribute node's Color) linked straight to it; else the material's viewport display
+        colour."""
+        linked = _follow(socket)
+        attr = colour_attribute(linked)
+        if attr is not None:
+            return ATTRIBUTE_MEAN, None, None, [], attr
         rgb = _rgb(socket)
         tex, uv_map, notes, unsupported = self._linked_texture(socket, label)
         if unsupported:                   # _convert_material says what it used instead
             rgb = _display_colour(mat)
             self._unread.append(notes.pop())
-        return rgb, tex, uv_map, notes
+        return rgb, tex, uv_map, notes, None
 
     def _emission(self, c, colour_socket, strength_socket, colour_label, strength_label):
         strength = float(strength_socket.default_value)
@@ -529,8 +593,7 @@ class Extractor:
     def _principled(self, mat, node):
         c = _Closure()
         opacity, notes = principled_opacity(node)
-        rgb, tex, uv_map, base_notes = self._colour(mat, node.inputs["Base Color"], "Base Color")
-        c.set_base(rgb, tex, uv_map, base_notes, weight=opacity)
+        c.set_base(*self._colour(mat, node.inputs["Base Color"], "Base Color"), weight=opacity)
         self._emission(c, node.inputs["Emission Color"], node.inputs["Emission Strength"],
                        "Emission Color", "Emission Strength")
         c.opacity = opacity
@@ -587,8 +650,9 @@ class MeshData:
     material is see-through (clear_faces)."""
 
     def __init__(self, vertices, triangles, normals=None, uvs=None, material_ids=None,
-                 materials=(), warnings=(), see_through: int = 0):
+                 materials=(), warnings=(), see_through: int = 0, colors=None):
         self.vertices, self.triangles = vertices, triangles
+        self.colors = colors            # (T, 3, 3) colour attribute values (vertex_colors)
         self.normals, self.uvs, self.material_ids = normals, uvs, material_ids
         self.materials = list(materials)
         self.warnings = list(warnings)
@@ -658,6 +722,7 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
         vertices, triangles, loops, normals, ids = geo
 
         warnings, materials, uv_names, textured = [], [], [], []
+        attributes = {}                   # slot -> colour attribute name its base colour reads
         used = set(np.unique(np.clip(ids, 0, len(slots) - 1)).tolist()) if slots else set()
         for i, slot in enumerate(slots):
             mat = slot.material
@@ -672,12 +737,27 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             info = ex.material_info(mat)
             warnings += [f"material '{mat.name}' {message}" for message in info.warnings]
             materials.append(info.material)
+            if info.attribute is not None:
+                attributes[i] = (mat.name, info.attribute)
             if info.textured:
                 textured.append(mat.name)
                 for uv_name in info.uv_maps:
                     if uv_name not in uv_names:
                         uv_names.append(uv_name)
 
+        colors = None
+        if attributes:
+            colors = np.zeros((len(triangles), 3, 3), np.float32)
+            slot_of = np.clip(ids, 0, len(slots) - 1)
+            for i, (mat_name, name) in attributes.items():
+                vals = corner_colours(mesh, name, triangles, loops)
+                if vals is None:
+                    label = f"'{name}'" if name else "(the render colour attribute)"
+                    warnings.append(f"material '{mat_name}' reads colour attribute {label}, "
+                                    f"which the mesh does not have; black, as in Cycles")
+                    continue
+                sel = slot_of == i
+                colors[sel] = vals[sel]
         drop = clear_faces(materials, ids)
         see_through = 0
         keep = None
@@ -686,6 +766,7 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             vertices, triangles, normals, ids, keep = _without(vertices, triangles, normals, ids,
                                                                drop)
             loops = loops[keep]
+            colors = colors[keep] if colors is not None else None
         uvs = None
         if textured and len(triangles):
             names = ("material " if len(textured) == 1 else "materials ") + ", ".join(
@@ -697,7 +778,8 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             layer = _uv_layer(mesh, uv_names[0], names, warnings)
             if layer is not None:
                 uvs = corner_uvs(mesh, loops, layer)
-        return MeshData(vertices, triangles, normals, uvs, ids, materials, warnings, see_through)
+        return MeshData(vertices, triangles, normals, uvs, ids, materials, warnings, see_through,
+                        colors)
     finally:
         obj_eval.to_mesh_clear()
 
@@ -866,7 +948,7 @@ def extract_scene(depsgraph, view_layer=None):
             two_sided=bool(props.two_sided) if props is not None else False,
             resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
             normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
-            materials=data.materials,
+            materials=data.materials, colors=data.colors,
             camera_visible=(bool(getattr(source, "visible_camera", True))
                             and not flags.indirect_only(inst)),
             holdout=flags.holdout(inst),
@@ -1074,7 +1156,8 @@ class ExtractionCache:
                 two_sided=bool(props.two_sided) if props is not None else False,
                 resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
                 normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
-                materials=data.materials, camera_visible=cam, holdout=flags.holdout(inst),
+                materials=data.materials, colors=data.colors, camera_visible=cam,
+                holdout=flags.holdout(inst),
                 casts_shadow=bool(getattr(source, "visible_shadow", True))))
         names = [o.name for o in objects]
         self.changed = bool(reads) or names != self.names

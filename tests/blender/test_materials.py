@@ -573,3 +573,76 @@ def test_a_material_the_extraction_cannot_read_is_rendered_by_cycles(blender):
     messages = [what for who, what in r["warnings"] if who == "Lamp"]
     assert messages and "node group 'Lamp Group'" in messages[0], r["warnings"]
     assert "rendered by Cycles" in messages[0]
+
+
+COLOUR_ATTRIBUTES = """
+empty_scene()
+box = cube("Box")
+mesh = box.data
+rng = np.random.default_rng(3)
+corner = mesh.color_attributes.new("Paint", 'BYTE_COLOR', 'CORNER')
+corner_px = rng.random((len(mesh.loops), 4)).astype(np.float32)
+corner.data.foreach_set("color", corner_px.ravel())
+point = mesh.attributes.new("Tint", 'FLOAT_COLOR', 'POINT')
+point_px = rng.random((len(mesh.vertices), 4)).astype(np.float32)
+point.data.foreach_set("color", point_px.ravel())
+face = mesh.attributes.new("Grade", 'FLOAT', 'FACE')
+face_px = rng.random(len(mesh.polygons)).astype(np.float32)
+face.data.foreach_set("value", face_px)
+mesh.color_attributes.default_color_name = "Paint"     # the render colour attribute
+
+def reading(name, node="ShaderNodeVertexColor", shader=None):
+    m = principled(name)
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    n = nodes.new(node)
+    if node == "ShaderNodeVertexColor":
+        n.layer_name = name if name != "Default" else ""
+    else:
+        n.attribute_name = name
+    target = nodes["Principled BSDF"]
+    if shader is not None:
+        target = nodes.new(shader)
+        links.new(target.outputs[0], nodes["Material Output"].inputs["Surface"])
+    links.new(n.outputs["Color"], target.inputs["Base Color" if shader is None else "Color"])
+    return m
+
+mats = [reading("Paint"), reading("Tint", "ShaderNodeAttribute", "ShaderNodeBsdfDiffuse"),
+        reading("Grade", "ShaderNodeAttribute"), reading("Default"), reading("Missing"),
+        principled("Plain", base=(0.1, 0.2, 0.3))]
+for m in mats:
+    mesh.materials.append(m)
+mesh.polygons.foreach_set("material_index", np.array([0, 1, 2, 3, 4, 5], np.int32))
+mesh.update()
+objects, warnings = extract()
+o = objects["Box"]
+m = box.data
+emit(colors=o.colors.tolist(), ids=o.material_ids.tolist(),
+     flags=[x.vertex_colors for x in o.materials],
+     corner=corner_values(m, lambda li: list(m.color_attributes["Paint"].data[li].color[:3])).tolist(),
+     point=corner_values(m, lambda li: list(m.attributes["Tint"].data[m.loops[li].vertex_index].color[:3])).tolist(),
+     face=[m.attributes["Grade"].data[t.polygon_index].value for t in m.loop_triangles],
+     warnings=warnings)
+"""
+
+
+def test_colour_attributes_into_base_color_are_read_per_corner(blender):
+    """A Color Attribute node (or an Attribute node's Color) straight into Base Color or a
+    Diffuse BSDF's Color: the mesh's colours per triangle corner, from the corner, point or
+    face domain, byte colours linearised as Blender reads them (the reference: a Python loop
+    over the loops); a missing attribute is black, as in Cycles, with a warning."""
+    res = blender(EXTRACT + COLOUR_ATTRIBUTES)
+    r = res.result
+    colors, ids = np.array(r["colors"]), np.array(r["ids"])
+    assert r["flags"] == [True, True, True, True, True, False]
+    corner, point, face = np.array(r["corner"]), np.array(r["point"]), np.array(r["face"])
+    for slot, want in ((0, corner), (1, point), (3, corner)):    # 3: the render attribute
+        sel = ids == slot
+        assert sel.sum() == 2
+        np.testing.assert_allclose(colors[sel], want[sel], atol=1e-6)
+    sel = ids == 2
+    np.testing.assert_allclose(colors[sel], np.repeat(face[sel][:, None, None], 3, 1) *
+                               np.ones((1, 3, 3)), atol=1e-6)
+    assert np.all(colors[ids == 4] == 0.0)
+    messages = [what for who, what in r["warnings"]]
+    assert any("'Missing'" in w and "black" in w for w in messages), messages
+    assert len(messages) == 1, messages

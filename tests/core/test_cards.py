@@ -86,6 +86,37 @@ def test_material_ids_select_materials():
     assert {tuple(x) for x in np.unique(colours, axis=0)} == {(1.0, 0.0, 0.0), (0.0, 0.0, 1.0)}
 
 
+def test_colour_attribute_is_interpolated_across_each_triangle():
+    """A vertex_colors material's albedo is the per-corner colours, interpolated with the
+    texel's barycentric coordinates (exact: a plane whose colour is linear in x and y); another
+    material on the same mesh keeps its base colour."""
+    v, f, _ = plane()
+    colour = lambda p: np.stack([0.5 + 0.4 * p[..., 0], 0.5 + 0.4 * p[..., 1],   # noqa: E731
+                                 np.full(p.shape[:-1], 0.25)], -1)
+    colors = colour(v[f]).astype(np.float32)                  # (T, 3, 3), linear in x, y
+    painted = Material(base_color=(0.0, 1.0, 0.0), vertex_colors=True)
+    mc = bake_mesh_cards(v, f, texel_density=64, colors=colors, materials=[painted],
+                         material_ids=np.zeros(len(f), np.int64))
+    card = next(c for c in mc.cards if c.axis == 5)           # looking down at the top face
+    w, h = card.resolution
+    ts = card.texel_size()
+    x = card.rect_min[0] + (np.arange(w) + 0.5) * ts[0]
+    y = card.rect_min[1] + (np.arange(h) + 0.5) * ts[1]
+    Y, X = np.meshgrid(y, x, indexing="ij")
+    lit = card.opacity > 0
+    want = colour(np.stack([X, Y], -1))
+    assert lit.sum() > 0.9 * lit.size
+    assert np.abs(card.albedo[lit] - want[lit]).max() < 1e-5
+    # a second material without the flag: its base colour, the colours ignored
+    ids = np.array([0, 1])
+    mc = bake_mesh_cards(v, f, texel_density=64, colors=colors, material_ids=ids,
+                         materials=[painted, Material(base_color=(0.1, 0.2, 0.3))])
+    card = next(c for c in mc.cards if c.axis == 5)
+    got = card.albedo[card.opacity > 0]
+    plain = np.all(np.abs(got - (0.1, 0.2, 0.3)) < 1e-6, axis=1)
+    assert 0.3 < plain.mean() < 0.7
+
+
 def test_room_with_pillar_seen_from_inside():
     v, f = shapes.room_with_pillar()
     mc = bake_mesh_cards(v, f, texel_density=20)
