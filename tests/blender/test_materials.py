@@ -527,9 +527,15 @@ lamp, lamp_bsdf = grouped("Lamp", **{"Base Color": (0.2, 0.5, 0.1, 1.0),
                                      "Emission Strength": 4.0})
 glass, _ = grouped("GroupGlass", **{"Transmission Weight": 1.0})
 plain = principled("Plain", base=(0.2, 0.5, 0.1))
-attr = principled("Attr")                   # vertex colours: the mesh's, not the material's
+attr = principled("Attr")                   # vertex colours through a Mix: captured
+mix = attr.node_tree.nodes.new("ShaderNodeMix")
+mix.data_type = 'RGBA'
+mix.blend_type = 'MULTIPLY'
+mix.inputs["Factor"].default_value = 1.0
+mix.inputs[7].default_value = (1.0, 1.0, 1.0, 1.0)           # B: white
 attr.node_tree.links.new(attr.node_tree.nodes.new("ShaderNodeVertexColor").outputs["Color"],
-                         attr.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
+                         mix.inputs[6])                        # A: the colour attribute
+attr.node_tree.links.new(mix.outputs[2], attr.node_tree.nodes["Principled BSDF"].inputs["Base Color"])
 for i, mat in enumerate((lamp, glass, plain, attr)):
     cube(mat.name, location=(3.0 * i, 0.0, 0.0)).data.materials.append(mat)
 objects, warnings = extract()
