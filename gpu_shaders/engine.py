@@ -61,7 +61,7 @@ import time
 import bpy
 import numpy as np
 
-from . import sdf_trace
+from . import data_passes, sdf_trace
 from .scene_state import SceneState
 
 # Extra passes: (name in the render result, channels, channel ids, type).
@@ -125,6 +125,19 @@ def view_projection(depsgraph, camera, width: int, height: int):
     view = cam.matrix_world.inverted()
     vp = np.array(proj, np.float64) @ np.array(view, np.float64)
     return vp, np.array(cam.matrix_world.translation, np.float64), float(cam.data.clip_end)
+
+
+def _data_passes(fr, scene, extra) -> dict:
+    """The view layer's enabled data passes (data_passes.DATA_PASSES rows `extra`) of an F12
+    frame: one read-back of the G-buffer's position and emission."""
+    g = fr.gbuffer
+    world = scene.world
+    mist = ((world.mist_settings.start, world.mist_settings.depth, world.mist_settings.falloff)
+            if world is not None else (5.0, 25.0, 'QUADRATIC'))
+    cam = scene.camera
+    return data_passes.data_passes([row[1] for row in extra], fr.read(g["position"]),
+                                   fr.read(g["emission"]), np.array(cam.matrix_world),
+                                   getattr(cam.data, "type", "PERSP") == 'ORTHO', mist)
 
 
 def camera_matrices(depsgraph, camera, width: int, height: int):
@@ -451,6 +464,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
         LAST_RENDER["notes"].append(staleness.summary(stale) + ": drawn, but their light and "
                                     "shadows are the bake's; press Bake")
     result = Frame(textures, None, width, height)
+    result.gbuffer = gbuf["textures"]          # F12's data passes (data_passes.py) read it
     result.converged = bool(done)
     if KEEP_IMAGES or view != "COMBINED":
         images = dict(position=result.read(g["position"]), normal=result.read(g["normal"]),
@@ -480,6 +494,7 @@ class Frame:
         self.textures, self.shown = textures, shown
         self.width, self.height = width, height
         self.converged = False       # the viewport's: nothing left to refine (frame())
+        self.gbuffer = None          # the G-buffer's textures (position, normal, albedo, emission)
 
     def read(self, tex) -> np.ndarray:
         from .resources import read_texture
@@ -601,6 +616,9 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
         layer = depsgraph.view_layer.name
         for name, channels, chan_id, _ in PASSES:
             self.add_pass(name, channels, chan_id, layer=layer)
+        extra = data_passes.wanted(depsgraph.view_layer)
+        for _, name, channels, chan_id, _ in extra:
+            self.add_pass(name, channels, chan_id, layer=layer)
         result = self.begin_result(0, 0, width, height, layer=layer)
         # An F12 render owns its GPU state, as a Cycles session does: made here, released
         # before render() returns (while its GPU context is current).
@@ -614,6 +632,8 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             passes = {name: fr.pass_array(name)
                       for name in ("Combined",) + tuple(p[0] for p in PASSES)
                       if name == "Combined" or fr.textures}
+            if extra and fr.gbuffer is not None:
+                passes.update(_data_passes(fr, scene, extra))
             if getattr(scene.camera.data, "type", "PERSP") == 'PANO':
                 LAST_RENDER.setdefault("notes", []).append(
                     f"camera {scene.camera.name!r} is panoramic: rendered as a perspective "
@@ -650,6 +670,8 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
     def update_render_passes(self, scene=None, renderlayer=None):
         self.register_pass(scene, renderlayer, "Combined", 4, "RGBA", 'COLOR')
         for name, channels, chan_id, kind in PASSES:
+            self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
+        for _, name, channels, chan_id, kind in data_passes.wanted(renderlayer):
             self.register_pass(scene, renderlayer, name, channels, chan_id, kind)
 
     def view_update(self, context, depsgraph):
