@@ -52,6 +52,7 @@ def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
         if instanced:
             info.push_constant('INT', "instance_base")
         info.push_constant('INT', "use_albedo_tex")
+        info.push_constant('INT', "alpha_clip")
         info.push_constant('INT', "use_emit_tex")
         info.push_constant('INT', "albedo_base_h")
         info.push_constant('INT', "emit_base_h")
@@ -86,6 +87,8 @@ def texture_rgba(tex) -> np.ndarray:
     h, w, c = t.shape
     out = np.ones((h, w, 4), np.float32)
     out[..., :3] = t[..., :3] if c >= 3 else t[..., :1]
+    if c == 4:
+        out[..., 3] = t[..., 3]           # a cut-out's alpha (Material.alpha_clip)
     return out
 
 
@@ -172,9 +175,11 @@ def scene_triangles(objects):
                 emi = np.full(3, float(mt.emission_strength))
             else:
                 emi = np.asarray(mt.emission_color, np.float64)[:3] * float(mt.emission_strength)
+            clip = bool(getattr(mt, "alpha_clip", False)) and a_tex is not None
             key = (id(a_tex) if a_tex is not None else None,
-                   id(e_tex) if e_tex is not None else None)
-            g = groups.setdefault(key, dict(albedo_tex=a_tex, emit_tex=e_tex, pos=[], nor=[],
+                   id(e_tex) if e_tex is not None else None, clip)
+            g = groups.setdefault(key, dict(albedo_tex=a_tex, emit_tex=e_tex, alpha_clip=clip,
+                                            pos=[], nor=[],
                                             uv=[], albedo=[], emit=[]))
             corners = (sel[:, None] * 3 + np.arange(3)).ravel()
             g["pos"].append(p[corners])
@@ -249,6 +254,7 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
                                                       ("pos", "nor", "uv", "albedo", "emit")})
             shader.bind()
             shader.uniform_int("use_albedo_tex", int(g["albedo_tex"] is not None))
+            shader.uniform_int("alpha_clip", int(g["alpha_clip"]))
             shader.uniform_int("use_emit_tex", int(g["emit_tex"] is not None))
             shader.uniform_int("albedo_base_h", int(a_h))
             shader.uniform_int("emit_base_h", int(e_h))

@@ -156,7 +156,7 @@ class MeshBatches:
             triangles += len(g["pos"]) // 3
             batch = batch_for_shader(shader, 'TRIS', {name: g[name] for name in
                                                       ("pos", "nor", "uv", "albedo", "emit")})
-            groups.append((batch, g["albedo_tex"], g["emit_tex"]))
+            groups.append((batch, g["albedo_tex"], g["emit_tex"], g["alpha_clip"]))
         return _Entry(data, groups, triangles)
 
     def draw(self, view_proj, width: int, height: int, footprint_scale: float = 1.0) -> dict:
@@ -212,8 +212,8 @@ class MeshBatches:
             for key, base, count in self.runs:
                 entry = self.entries[key]
                 triangles += entry.triangles * count
-                for batch, a_arr, e_arr in entry.groups:
-                    if (id(a_arr), id(e_arr)) != bound:
+                for batch, a_arr, e_arr, clip in entry.groups:
+                    if (id(a_arr), id(e_arr), clip) != bound:
                         if dummy is None and (a_arr is None or e_arr is None):
                             dummy = gpu.types.GPUTexture(
                                 (1, 1), format='RGBA32F',
@@ -221,12 +221,13 @@ class MeshBatches:
                         a_tex, a_h = gpu_texture(a_arr) if a_arr is not None else (dummy, 1)
                         e_tex, e_h = gpu_texture(e_arr) if e_arr is not None else (dummy, 1)
                         shader.uniform_int("use_albedo_tex", int(a_arr is not None))
+                        shader.uniform_int("alpha_clip", int(clip))
                         shader.uniform_int("use_emit_tex", int(e_arr is not None))
                         shader.uniform_int("albedo_base_h", int(a_h))
                         shader.uniform_int("emit_base_h", int(e_h))
                         shader.uniform_sampler("albedo_tex", a_tex)
                         shader.uniform_sampler("emit_tex", e_tex)
-                        bound = (id(a_arr), id(e_arr))
+                        bound = (id(a_arr), id(e_arr), clip)
                     shader.uniform_int("instance_base", base)
                     batch.draw_instanced(shader, instance_start=0, instance_count=count)
                     draws += 1

@@ -34,6 +34,10 @@ class Material:
     # the base colour is the mesh's colour attribute (per corner: ObjectInput.colors), as a
     # Color Attribute node into Base Color makes it; base_color is unused then
     vertex_colors: bool = False
+    # a cut-out: the base colour texture's alpha under 0.5 is a hole for the camera (the
+    # G-buffer discards it); the SDFs and cards keep the whole faces, as Lumen's distance fields
+    # do. Not in the digest: the cards do not depend on it
+    alpha_clip: bool = False
 
     def digest(self) -> bytes:
         """Content hash input (textures included), for re-baking only what changed."""

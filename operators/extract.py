@@ -169,15 +169,18 @@ def _value(node, *names, default=0.0):
     return default, False
 
 
-def principled_opacity(node):
+def principled_opacity(node, cut_out: bool = False):
     """(opacity, warnings) of a Principled BSDF: the share of light it stops, Alpha x (1 - the
     transmission lobe's weight), that lobe being Transmission Weight x (1 - Metallic) as in
-    Cycles' Principled BSDF. Values only: a cut-out (an image driving Alpha) is drawn opaque and
-    named in a warning; a driven Transmission Weight or Metallic uses its value."""
+    Cycles' Principled BSDF. Values only: a driven Alpha is opaque (a cut-out of the Base Color
+    image, cut_out, is the G-buffer's; anything else is named in a warning); a driven
+    Transmission Weight or Metallic uses its value."""
     notes = []
     alpha, alpha_linked = _value(node, "Alpha", default=1.0)
     if alpha_linked:
-        notes.append("Alpha is driven by a node (cut-outs are not supported); drawn opaque")
+        if not cut_out:
+            notes.append("Alpha is driven by a node (only the Alpha of the Base Color image is "
+                         "read, as a cut-out); drawn opaque")
         alpha = 1.0
     transmission, t_linked = _value(node, "Transmission Weight", "Transmission")
     metallic, m_linked = _value(node, "Metallic")
@@ -204,7 +207,7 @@ def mix_factor(node):
     if src.type == 'LIGHT_PATH' and out.name in _LIGHT_RAY:
         return _LIGHT_RAY[out.name], []
     return None, [f"the Mix Shader's Factor is driven by a {src.bl_label} node (cut-outs are "
-                  f"not supported); drawn opaque"]
+                  f"read only from the Alpha of the Base Color image); drawn opaque"]
 
 
 class _Texture:
@@ -244,6 +247,7 @@ class _Closure:
     warnings: list = dataclasses.field(default_factory=list)
     share: float = 1.0                      # the weight of the part that carries base_tex
     attr: object = None                     # a colour attribute's name in place of base_tex
+    clip: bool = False                      # base_tex's alpha cuts the surface out
 
     def set_base(self, rgb, tex, uv_map, notes, attr, weight: float):
         self.reflect = tuple(weight * float(x) for x in rgb)
@@ -265,6 +269,7 @@ class _Closure:
         if textured:
             share, s = max(textured, key=lambda x: x[0])
             out.base_tex, out.attr, out.base, out.share = s.base_tex, s.attr, s.base, share
+            out.clip = s.clip
             if any(w > 0.0 and o is not s and max(o.reflect) > 0.0
                    for o, w in zip(sides, weights)):
                 out.warnings.append("a Mix or Add Shader blends a texture with another "
@@ -305,7 +310,8 @@ class _Closure:
         material = Material(name=mat.name, base_color=base, base_color_texture=self.base_tex,
                             emission_color=self.emission, emission_strength=self.strength,
                             emission_texture=self.emit_tex, opacity=float(self.opacity),
-                            vertex_colors=self.attr is not None)
+                            vertex_colors=self.attr is not None,
+                            alpha_clip=self.clip and self.base_tex is not None)
         return MaterialInfo(material, self.uv_maps, bool(self.uv_maps), self.warnings,
                             attribute=self.attr)
 
@@ -551,6 +557,10 @@ class Extractor:
             fac, notes = mix_factor(node)
             if fac is None:                     # a cut-out: the side that is not clear
                 fac = 1.0 if sides[0].opacity < sides[1].opacity else 0.0
+                solid = sides[int(fac)]
+                if fac == 1.0 and sides[0].opacity == 0.0 and self._cut_out(
+                        solid, _follow(node.inputs[0])):
+                    notes = []
             mixed = _Closure.mix(sides[0], sides[1], fac)
             mixed.warnings += notes
             return mixed, None
@@ -575,6 +585,23 @@ class Extractor:
             self._unread.append(notes.pop())
         return rgb, tex, uv_map, notes, None
 
+    def _cut_out(self, c, alpha) -> bool:
+        """Whether `alpha` (what drives an Alpha or a Mix Factor) is the Alpha of the very image
+        the closure's base colour reads: a cut-out (leaves, a fence), which the G-buffer
+        discards where that alpha is under 0.5 (c.clip); the SDFs and cards keep the faces."""
+        if alpha is None or c.base_tex is None:
+            return False
+        node, out = alpha
+        if node.type != 'TEX_IMAGE' or out.name != "Alpha" or node.image is None:
+            return False
+        arr, _why = self.image_array(node.image, "Color")
+        if arr is not c.base_tex or arr.ndim != 3 or arr.shape[2] != 4:
+            return False
+        c.clip = True
+        c.warnings.append("is a cut-out (its Base Color image's Alpha): the camera sees through "
+                          "its holes; its shadows and bounce light are the whole faces'")
+        return True
+
     def _emission(self, c, colour_socket, strength_socket, colour_label, strength_label):
         strength = float(strength_socket.default_value)
         if _follow(strength_socket) is not None:
@@ -592,8 +619,10 @@ class Extractor:
 
     def _principled(self, mat, node):
         c = _Closure()
-        opacity, notes = principled_opacity(node)
-        c.set_base(*self._colour(mat, node.inputs["Base Color"], "Base Color"), weight=opacity)
+        c.set_base(*self._colour(mat, node.inputs["Base Color"], "Base Color"), weight=1.0)
+        cut = self._cut_out(c, _follow(node.inputs["Alpha"]))
+        opacity, notes = principled_opacity(node, cut)
+        c.reflect = tuple(opacity * x for x in c.reflect)
         self._emission(c, node.inputs["Emission Color"], node.inputs["Emission Strength"],
                        "Emission Color", "Emission Strength")
         c.opacity = opacity

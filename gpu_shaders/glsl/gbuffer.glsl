@@ -1,7 +1,8 @@
 /* Lumen GI G-buffer: one draw per texture group (world-space vertices, no index buffer).
  * Vertex inputs: pos, nor (world), uv (the corner's UV, zero without a UV map), albedo, emit (per
  * corner, the triangle's material values; with an emission texture emit is the strength).
- * Push constants: view_proj, use_albedo_tex, use_emit_tex, albedo_base_h, emit_base_h (the base
+ * Push constants: view_proj, use_albedo_tex, alpha_clip (a cut-out: discard where the albedo
+ * texture's alpha is under 0.5), use_emit_tex, albedo_base_h, emit_base_h (the base
  * level's height), footprint_scale (the share of the pixel's texture footprint one G-buffer
  * filters: 1, or 1 / sqrt(n) for one of n anti-aliasing samples). Samplers: albedo_tex,
  * emit_tex (RGBA32F: gbuffer.mip_chain, the levels stacked in rows, row 0 = v 0), read with texelFetch and filtered here: anisotropic trilinear over the mip
@@ -34,17 +35,17 @@ ivec2 wrap_texel(ivec2 i, ivec2 size)
 }
 
 /* Bilinear in one mip level: `size` texels at row offset `y0` of the stacked chain. */
-vec3 sample_level(sampler2D tex, vec2 uv, ivec2 size, int y0)
+vec4 sample_level(sampler2D tex, vec2 uv, ivec2 size, int y0)
 {
   vec2 x = uv * vec2(size) - 0.5;
   vec2 x0 = floor(x);
   vec2 f = x - x0;
   ivec2 i0 = ivec2(x0);
   ivec2 o = ivec2(0, y0);
-  vec3 c00 = texelFetch(tex, o + wrap_texel(i0, size), 0).rgb;
-  vec3 c10 = texelFetch(tex, o + wrap_texel(i0 + ivec2(1, 0), size), 0).rgb;
-  vec3 c01 = texelFetch(tex, o + wrap_texel(i0 + ivec2(0, 1), size), 0).rgb;
-  vec3 c11 = texelFetch(tex, o + wrap_texel(i0 + ivec2(1, 1), size), 0).rgb;
+  vec4 c00 = texelFetch(tex, o + wrap_texel(i0, size), 0);
+  vec4 c10 = texelFetch(tex, o + wrap_texel(i0 + ivec2(1, 0), size), 0);
+  vec4 c01 = texelFetch(tex, o + wrap_texel(i0 + ivec2(0, 1), size), 0);
+  vec4 c11 = texelFetch(tex, o + wrap_texel(i0 + ivec2(1, 1), size), 0);
   return mix(mix(c00, c10, f.x), mix(c01, c11, f.x), f.y);
 }
 
@@ -57,7 +58,7 @@ vec3 sample_level(sampler2D tex, vec2 uv, ivec2 size, int y0)
  * samples (1 / sqrt(n): the samples together cover the pixel, each its share), so the pixel
  * filter of the samples' mean is not blurred again by a whole pixel's mip footprint. */
 #define MAX_ANISO 16
-vec3 sample_mipmapped(sampler2D tex, vec2 uv, int base_h)
+vec4 sample_mipmapped(sampler2D tex, vec2 uv, int base_h)
 {
   int w = textureSize(tex, 0).x;
   ivec2 base = ivec2(w, base_h);
@@ -84,10 +85,10 @@ vec3 sample_mipmapped(sampler2D tex, vec2 uv, int base_h)
     s = max(s / 2, ivec2(1));
   }
   bool two = !(l1 == l0 || lod == float(l0));
-  vec3 sum = vec3(0.0);
+  vec4 sum = vec4(0.0);
   for (int i = 0; i < taps; i++) {
     vec2 t = uv + axis * ((float(i) + 0.5) / float(taps) - 0.5);
-    vec3 a = sample_level(tex, t, s, y);
+    vec4 a = sample_level(tex, t, s, y);
     if (two) {
       a = mix(a, sample_level(tex, t, max(s / 2, ivec2(1)), y + s.y), lod - float(l0));
     }
@@ -107,12 +108,18 @@ void main()
     out_emission = vec4(0.0);
     return;
   }
+  vec4 base = use_albedo_tex != 0 ? sample_mipmapped(albedo_tex, v_uv, albedo_base_h)
+                                  : vec4(v_albedo, 1.0);
+  vec3 emit = use_emit_tex != 0 ? sample_mipmapped(emit_tex, v_uv, emit_base_h).rgb * v_emit
+                                : v_emit;
+  if (alpha_clip != 0 && base.a < 0.5) {
+    discard;                 /* a cut-out's hole (Material.alpha_clip): what is behind shows */
+  }
   out_position = vec4(v_pos, 1.0);
   vec3 n = v_nor;
   float len = length(n);
   out_normal = vec4(len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0), 1.0);
-  vec3 albedo = use_albedo_tex != 0 ? sample_mipmapped(albedo_tex, v_uv, albedo_base_h) : v_albedo;
-  vec3 emit = use_emit_tex != 0 ? sample_mipmapped(emit_tex, v_uv, emit_base_h) * v_emit : v_emit;
+  vec3 albedo = base.rgb;
   out_albedo = vec4(albedo, 1.0);
   out_emission = vec4(emit, 1.0);
 }
