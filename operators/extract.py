@@ -196,6 +196,34 @@ def principled_opacity(node, cut_out: bool = False):
 _LIGHT_RAY = {"Is Shadow Ray": 1.0, "Is Camera Ray": 0.0}
 
 
+def uv_mapping(node):
+    """((A 2x2, b 2), None) of a Mapping node on UVs as Blender computes it (Point: rotate(v x
+    Scale) + Location; Texture: its inverse; Vector: no Location), u and v of the 3D result of
+    (u, v, 0); or (None, why) when its inputs are driven or its type is Normal."""
+    import mathutils
+
+    kind = node.vector_type
+    names = ("Location", "Rotation", "Scale")
+    if any(_follow(node.inputs[n]) is not None for n in names if n in node.inputs):
+        return None, "a Mapping node's Location, Rotation or Scale is driven (not supported)"
+    if kind not in ('POINT', 'TEXTURE', 'VECTOR'):
+        return None, f"a Mapping node of type {kind.title()} (not supported)"
+    loc = np.array(node.inputs["Location"].default_value[:3], np.float64) \
+        if "Location" in node.inputs else np.zeros(3)
+    rot = np.array(mathutils.Euler(node.inputs["Rotation"].default_value[:3]).to_matrix(),
+                   np.float64)
+    scale = np.array(node.inputs["Scale"].default_value[:3], np.float64)
+    if kind == 'VECTOR':
+        loc = np.zeros(3)
+    m = rot @ np.diag(scale)
+    if kind == 'TEXTURE':           # the inverse: (R^-1 (v - L)) / S
+        if np.any(np.abs(scale) < 1e-12):
+            return None, "a Texture Mapping node with a zero Scale (not supported)"
+        m = np.diag(1.0 / scale) @ rot.T
+        loc = -m @ loc
+    return (m[:2, :2].copy(), loc[:2].copy()), None
+
+
 def mix_factor(node):
     """(factor, warnings) of a Mix Shader for the light the preview carries: its value, or a
     Light Path output's (_LIGHT_RAY); None (with a warning) when anything else drives it."""
@@ -213,10 +241,11 @@ def mix_factor(node):
 class _Texture:
     """An Image Texture feeding a socket: its image, output (Color/Alpha) and UV map name."""
 
-    def __init__(self, node, output, uv_map, notes):
+    def __init__(self, node, output, uv_map, notes, mapping=None):
         self.node, self.image, self.output = node, node.image, output
         self.uv_map = uv_map            # None: the mesh's active render UV map
         self.notes = notes              # warnings about coordinates/projection (texture still used)
+        self.mapping = mapping          # (A 2x2, b 2): a Mapping node's u, v -> A (u, v) + b
 
 
 class MaterialInfo:
@@ -229,6 +258,7 @@ class MaterialInfo:
         self.warnings = list(warnings)
         self.attribute = attribute      # the colour attribute its base colour reads ("": the
                                         # mesh's render colour attribute), or None
+        self.mapping = None             # its textures' UV Mapping (A, b), or None
 
 
 @dataclasses.dataclass
@@ -322,6 +352,12 @@ DISPLAY_COLOUR = "using its viewport display colour"
 ATTRIBUTE_MEAN = (0.8, 0.8, 0.8)
 
 
+def _same_mapping(a, b) -> bool:
+    if a is None or b is None:
+        return a is b
+    return np.allclose(a[0], b[0]) and np.allclose(a[1], b[1])
+
+
 def colour_attribute(linked):
     """The name of the colour attribute a socket reads straight from a Color Attribute node
     ("" for the mesh's render colour attribute) or an Attribute node's Color output (geometry
@@ -401,6 +437,7 @@ class Extractor:
         self.images = {}        # (image pointer, output) -> (array or None, reason)
         self._warnings = {}
         self._unread = []       # the material being converted: what it could not read
+        self._mapping = False   # ... and its textures' Mapping (None: none; False: no texture)
         self.dry = dry          # only whether materials can be read: no image loaded, no capture
 
     # warnings ----------------------------------------------------------------------------------
@@ -495,7 +532,7 @@ class Extractor:
             return MaterialInfo(fallback, warnings=["has nothing connected to the Material "
                                                     "Output's Surface; using its viewport "
                                                     "display colour"])
-        self._unread = []
+        self._unread, self._mapping = [], False
         closure, why = self._shader(mat, src[0], 0)
         if closure is None or self._unread:
             reason = why if closure is None else "; ".join(self._unread)
@@ -510,7 +547,9 @@ class Extractor:
             if closure is None:
                 return MaterialInfo(fallback, warnings=[f"{reason}; {DISPLAY_COLOUR}"])
             closure.warnings += [f"{r}; {DISPLAY_COLOUR}" for r in self._unread]
-        return closure.info(mat)
+        info = closure.info(mat)
+        info.mapping = self._mapping or None
+        return info
 
     def _captured(self, mat):
         """material_capture.Means of a material read only in part, rendered with every other
@@ -644,6 +683,11 @@ class Extractor:
         arr, why = self.image_array(tex.image, tex.output)
         if arr is None:
             return None, None, notes + [f"{label} {why}; using the {label} value"], False
+        if self._mapping is False:           # the material's first texture
+            self._mapping = tex.mapping
+        elif not _same_mapping(self._mapping, tex.mapping):
+            notes.append(f"the material's textures use different Mapping nodes; all are "
+                         f"sampled with the first's")
         return arr, tex.uv_map, notes + ([why] if why else []), False
 
     @staticmethod
@@ -661,6 +705,16 @@ class Extractor:
             notes.append(f"texture '{node.name}' uses {node.projection.lower()} projection "
                          f"(not supported); sampled with UVs")
         coords = _follow(node.inputs["Vector"])
+        mapping = None
+        if coords is not None and coords[0].type == 'MAPPING':
+            mapping, why = uv_mapping(coords[0])
+            if mapping is None:
+                notes.append(f"texture '{node.name}': {why}; sampled with the UV map as it is")
+            coords = _follow(coords[0].inputs["Vector"])
+            if coords is None:           # a Mapping's own Vector is (0, 0, 0) when unlinked
+                notes.append(f"texture '{node.name}' reads a Mapping node whose Vector is not "
+                             f"linked (not supported); sampled with the UV map")
+                mapping = None
         if coords is not None:
             src, out = coords
             if src.type == 'UVMAP':
@@ -668,7 +722,8 @@ class Extractor:
             elif not (src.type == 'TEX_COORD' and out.name == "UV"):
                 notes.append(f"texture '{node.name}' takes coordinates from a {src.bl_label} "
                              f"node (not supported); sampled with the UV map")
-        return _Texture(node, output.name, uv_map, notes), None
+                mapping = None
+        return _Texture(node, output.name, uv_map, notes, mapping), None
 
 
 # -- objects ------------------------------------------------------------------------------------
@@ -752,6 +807,7 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
 
         warnings, materials, uv_names, textured = [], [], [], []
         attributes = {}                   # slot -> colour attribute name its base colour reads
+        mappings = {}                     # slot -> its textures' Mapping (A, b)
         used = set(np.unique(np.clip(ids, 0, len(slots) - 1)).tolist()) if slots else set()
         for i, slot in enumerate(slots):
             mat = slot.material
@@ -768,6 +824,8 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             materials.append(info.material)
             if info.attribute is not None:
                 attributes[i] = (mat.name, info.attribute)
+            if info.mapping is not None:
+                mappings[i] = info.mapping
             if info.textured:
                 textured.append(mat.name)
                 for uv_name in info.uv_maps:
@@ -807,6 +865,10 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             layer = _uv_layer(mesh, uv_names[0], names, warnings)
             if layer is not None:
                 uvs = corner_uvs(mesh, loops, layer)
+                slot_of = np.clip(ids, 0, max(len(slots) - 1, 0))
+                for i, (a, b) in mappings.items():     # each material's Mapping node
+                    sel = slot_of == i
+                    uvs[sel] = (uvs[sel].astype(np.float64) @ a.T + b).astype(np.float32)
         return MeshData(vertices, triangles, normals, uvs, ids, materials, warnings, see_through,
                         colors)
     finally:
