@@ -11,7 +11,8 @@ light texture read by glsl/direct_light.comp.glsl):
     texel 3: spot cos(half cone angle), spot blend, area (m^2, area lights), unused
 
 Units follow Cycles (intern/cycles/scene/light.cpp: point and spot strength x 1/(4 pi), area
-x 1/pi, sun unchanged), so that irradiance E at a surface point, and Cycles' Diffuse Direct pass
+x 1/pi, or x area / pi with Normalize off, sun unchanged; the colour times the Temperature's
+blackbody colour and 2^Exposure: light_colour), so that irradiance E at a surface point, and Cycles' Diffuse Direct pass
 (E / pi for a Lambert BSDF, the albedo left out), come out the same:
     sun:   colour x strength = irradiance E (W/m^2) on a surface facing it
     point: colour x P / (4 pi) = radiant intensity I (W/sr); E = I cos / d^2
@@ -41,13 +42,23 @@ def _area_size(light):
     return area, 0.5 * math.sqrt(sx * sx + sy * sy)
 
 
+def light_colour(light) -> np.ndarray:
+    """The light's colour as Cycles multiplies it into the strength: Color, times the
+    blackbody colour of its Temperature when Use Temperature is on, times 2^Exposure (Blender
+    4.x+ lights; absent properties leave it alone)."""
+    colour = np.asarray(light.color, np.float64)[:3].copy()
+    if getattr(light, "use_temperature", False):
+        colour *= np.asarray(light.temperature_color, np.float64)[:3]
+    return colour * 2.0 ** float(getattr(light, "exposure", 0.0))
+
+
 def light_row(light, matrix_world) -> np.ndarray:
     """The 16 float32 of one bpy Light datablock placed by `matrix_world` (4x4)."""
     m = np.asarray(matrix_world, np.float64)
     pos = m[:3, 3]
     direction = -m[:3, 2]
     direction = direction / max(np.linalg.norm(direction), 1e-12)
-    colour = np.asarray(light.color, np.float64)[:3]
+    colour = light_colour(light)
     row = np.zeros(ROW, np.float32)
     kind = LIGHT_TYPES[light.type]
     row[0] = kind
@@ -66,7 +77,9 @@ def light_row(light, matrix_world) -> np.ndarray:
     else:
         area, radius = _area_size(light)
         row[7] = radius
-        row[8:11] = colour * float(light.energy) / math.pi
+        # Normalize off: the strength is per square metre of the light (Cycles' invarea 1)
+        per_area = 1.0 if getattr(light, "normalize", True) else area
+        row[8:11] = colour * float(light.energy) * per_area / math.pi
     row[11] = 0.0 if getattr(light, "use_shadow", True) else 1.0
     row[12:15] = (cos_half, blend, area)
     return row
