@@ -27,6 +27,23 @@ NO_DEPTH = 1e10                       # Cycles' Depth where no surface is
 FALLOFF = {'QUADRATIC': 2.0, 'LINEAR': 1.0, 'INVERSE_QUADRATIC': 0.5}
 
 
+def shading_normal(position: np.ndarray, albedo: np.ndarray, emission: np.ndarray) -> np.ndarray:
+    """float32 [h, w, 4]: the G-buffer's shading normal (a normal map's, else the interpolated
+    normal), which gbuffer.glsl packs octahedrally into the albedo and emission w
+    (gbuffer_shading_lib.glsl decodes it the same way); 0 where no surface is. Cycles' Normal pass
+    is the shading normal."""
+    f = np.stack([albedo[..., 3], emission[..., 3]], -1).astype(np.float64) * 2.0 - 1.0
+    n = np.concatenate([f, 1.0 - np.abs(f).sum(-1, keepdims=True)], -1)
+    t = np.maximum(-n[..., 2:], 0.0)
+    n[..., :2] -= np.where(n[..., :2] >= 0.0, 1.0, -1.0) * t
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-30)
+    out = np.zeros(position.shape[:2] + (4,), np.float32)
+    surface = position[..., 3] > 0.5
+    out[..., :3] = np.where(surface[..., None], n, 0.0)
+    out[..., 3] = 1.0
+    return out
+
+
 def wanted(view_layer) -> list:
     """The DATA_PASSES rows the view layer enables."""
     return [row for row in DATA_PASSES if bool(getattr(view_layer, row[0], False))]

@@ -559,7 +559,9 @@ def _debug_image(view, state, gbuf, images, cam_pos, width, height, gi_cfg):
     else:
         shown = {"DIRECT": images["direct"], "INDIRECT": images["indirect"],
                  "ALBEDO": images["albedo"],
-                 "NORMAL": images["normal"] * 0.5 + 0.5}.get(view, images["combined"]).copy()
+                 "NORMAL": data_passes.shading_normal(images["position"], images["albedo"],
+                                                      images["emission"]) * 0.5 + 0.5
+                 }.get(view, images["combined"]).copy()
     shown = np.array(shown, np.float32)
     shown[..., 3] = 1.0
     return shown
@@ -632,6 +634,10 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             passes = {name: fr.pass_array(name)
                       for name in ("Combined",) + tuple(p[0] for p in PASSES)
                       if name == "Combined" or fr.textures}
+            if fr.gbuffer is not None and "Normal" in passes:      # the shading normal
+                g = fr.gbuffer
+                passes["Normal"] = data_passes.shading_normal(
+                    fr.read(g["position"]), fr.read(g["albedo"]), fr.read(g["emission"]))
             if extra and fr.gbuffer is not None:
                 passes.update(_data_passes(fr, scene, extra))
             if getattr(scene.camera.data, "type", "PERSP") == 'PANO':

@@ -30,6 +30,13 @@ from .packing import singular
 from .resources import glsl
 
 ATTACHMENTS = ("position", "normal", "albedo", "emission")
+# per-corner vertex inputs: tan is the MikkTSpace tangent xyz and the bitangent's sign (zero
+# without a normal map)
+VERTEX_INPUTS = (("pos", 'VEC3'), ("nor", 'VEC3'), ("uv", 'VEC2'), ("albedo", 'VEC3'),
+                 ("emit", 'VEC3'), ("tan", 'VEC4'))
+ATTRIBUTES = tuple(name for name, _ in VERTEX_INPUTS)
+# what a draw group binds (textures, flags) besides its vertex inputs
+MATERIAL_KEYS = ("albedo_tex", "emit_tex", "alpha_clip", "normal_tex", "normal_strength")
 _SHADER = {}
 
 
@@ -44,6 +51,7 @@ def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
         iface.smooth('VEC3', "v_pos")
         iface.smooth('VEC3', "v_nor")
         iface.smooth('VEC2', "v_uv")
+        iface.smooth('VEC4', "v_tan")
         iface.flat('VEC3', "v_albedo")
         iface.flat('VEC3', "v_emit")
         iface.flat('FLOAT', "v_holdout")
@@ -56,13 +64,16 @@ def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
         info.push_constant('INT', "use_emit_tex")
         info.push_constant('INT', "albedo_base_h")
         info.push_constant('INT', "emit_base_h")
+        info.push_constant('INT', "use_normal_tex")
+        info.push_constant('INT', "normal_base_h")
+        info.push_constant('FLOAT', "normal_strength")
         info.push_constant('FLOAT', "footprint_scale")
         info.sampler(0, 'FLOAT_2D', "albedo_tex")
         info.sampler(1, 'FLOAT_2D', "emit_tex")
+        info.sampler(2, 'FLOAT_2D', "normal_tex")
         if instanced:
-            info.sampler(2, 'FLOAT_2D', "instances")
-        for slot, (name, kind) in enumerate((("pos", 'VEC3'), ("nor", 'VEC3'), ("uv", 'VEC2'),
-                                             ("albedo", 'VEC3'), ("emit", 'VEC3'))):
+            info.sampler(3, 'FLOAT_2D', "instances")
+        for slot, (name, kind) in enumerate(VERTEX_INPUTS):
             info.vertex_in(slot, kind, name)
         info.vertex_out(iface)
         for slot, name in enumerate(ATTACHMENTS):
@@ -158,6 +169,10 @@ def scene_triangles(objects):
               else np.zeros((3 * t, 2)))
         colors = getattr(ob, "colors", None)            # (T, 3, 3): Material.vertex_colors
         colors = np.asarray(colors, np.float64) if colors is not None else None
+        tangents = getattr(ob, "tangents", None)        # (T, 3, 4): normal maps
+        if tangents is not None:
+            tangents = np.asarray(tangents, np.float64).reshape(-1, 4).copy()
+            tangents[:, :3] = tangents[:, :3] @ m[:3, :3].T     # world space, as the positions
         from ..lumen_addon.materials import Material
         mats = list(ob.materials) or [Material()]
         ids = (np.clip(np.asarray(ob.material_ids, np.int64), 0, len(mats) - 1)
@@ -176,21 +191,28 @@ def scene_triangles(objects):
             else:
                 emi = np.asarray(mt.emission_color, np.float64)[:3] * float(mt.emission_strength)
             clip = bool(getattr(mt, "alpha_clip", False)) and a_tex is not None
+            n_tex = getattr(mt, "normal_texture", None)
+            n_tex = n_tex if uvs is not None and tangents is not None else None
+            strength = float(getattr(mt, "normal_strength", 1.0))
             key = (id(a_tex) if a_tex is not None else None,
-                   id(e_tex) if e_tex is not None else None, clip)
+                   id(e_tex) if e_tex is not None else None, clip,
+                   id(n_tex) if n_tex is not None else None, strength if n_tex is not None else 0)
             g = groups.setdefault(key, dict(albedo_tex=a_tex, emit_tex=e_tex, alpha_clip=clip,
+                                            normal_tex=n_tex, normal_strength=strength, tan=[],
                                             pos=[], nor=[],
                                             uv=[], albedo=[], emit=[]))
             corners = (sel[:, None] * 3 + np.arange(3)).ravel()
             g["pos"].append(p[corners])
             g["nor"].append(n[corners])
+            g["tan"].append(tangents[corners] if tangents is not None
+                            else np.zeros((len(corners), 4)))
             g["uv"].append(uv[corners])
             g["albedo"].append(colors[sel].reshape(-1, 3) if vertex
                                else np.tile(alb, (len(corners), 1)))
             g["emit"].append(np.tile(emi, (len(corners), 1)))
     out = []
     for g in groups.values():
-        for name in ("pos", "nor", "uv", "albedo", "emit"):
+        for name in ATTRIBUTES:
             g[name] = np.concatenate(g[name]).astype(np.float32)
         out.append(g)
     return out
@@ -245,13 +267,15 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
             if not len(g["pos"]):
                 continue
             triangles += len(g["pos"]) // 3
-            if dummy is None and (g["albedo_tex"] is None or g["emit_tex"] is None):
+            if dummy is None and (g["albedo_tex"] is None or g["emit_tex"] is None
+                                  or g["normal_tex"] is None):
                 dummy = gpu.types.GPUTexture((1, 1), format='RGBA32F', data=gpu.types.Buffer(
                     'FLOAT', 4, [1.0, 1.0, 1.0, 1.0]))
             a_tex, a_h = gpu_texture(g["albedo_tex"]) if g["albedo_tex"] is not None else (dummy, 1)
             e_tex, e_h = gpu_texture(g["emit_tex"]) if g["emit_tex"] is not None else (dummy, 1)
-            batch = batch_for_shader(shader, 'TRIS', {name: g[name] for name in
-                                                      ("pos", "nor", "uv", "albedo", "emit")})
+            n_tex, n_h = (gpu_texture(g["normal_tex"]) if g["normal_tex"] is not None
+                          else (dummy, 1))
+            batch = batch_for_shader(shader, 'TRIS', {name: g[name] for name in ATTRIBUTES})
             shader.bind()
             shader.uniform_int("use_albedo_tex", int(g["albedo_tex"] is not None))
             shader.uniform_int("alpha_clip", int(g["alpha_clip"]))
@@ -260,6 +284,10 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
             shader.uniform_int("emit_base_h", int(e_h))
             shader.uniform_sampler("albedo_tex", a_tex)
             shader.uniform_sampler("emit_tex", e_tex)
+            shader.uniform_int("use_normal_tex", int(g["normal_tex"] is not None))
+            shader.uniform_int("normal_base_h", int(n_h))
+            shader.uniform_float("normal_strength", float(g["normal_strength"]))
+            shader.uniform_sampler("normal_tex", n_tex)
             batch.draw(shader)
         gpu.state.depth_test_set('NONE')
         gpu.state.depth_mask_set(False)

@@ -23,7 +23,8 @@ import gpu
 import numpy as np
 from gpu_extras.batch import batch_for_shader
 
-from .gbuffer import ATTACHMENTS, gbuffer_program, scene_triangles, upload_texture
+from .gbuffer import (ATTACHMENTS, ATTRIBUTES, MATERIAL_KEYS, gbuffer_program, scene_triangles,
+                      upload_texture)
 from .resources import glsl, row_texture
 
 TEXELS = 6                      # instance table texels per row
@@ -147,16 +148,16 @@ class MeshBatches:
         local = SimpleNamespace(vertices=data.vertices, triangles=data.triangles,
                                 matrix_world=np.eye(4), normals=data.normals, uvs=data.uvs,
                                 material_ids=data.material_ids, materials=data.materials,
-                                colors=getattr(data, "colors", None), camera_visible=True)
+                                colors=getattr(data, "colors", None),
+                                tangents=getattr(data, "tangents", None), camera_visible=True)
         shader = instanced_shader()
         groups, triangles = [], 0
         for g in scene_triangles([local]):
             if not len(g["pos"]):
                 continue
             triangles += len(g["pos"]) // 3
-            batch = batch_for_shader(shader, 'TRIS', {name: g[name] for name in
-                                                      ("pos", "nor", "uv", "albedo", "emit")})
-            groups.append((batch, g["albedo_tex"], g["emit_tex"], g["alpha_clip"]))
+            batch = batch_for_shader(shader, 'TRIS', {name: g[name] for name in ATTRIBUTES})
+            groups.append((batch, {k: g[k] for k in MATERIAL_KEYS}))
         return _Entry(data, groups, triangles)
 
     def draw(self, view_proj, width: int, height: int, footprint_scale: float = 1.0) -> dict:
@@ -212,22 +213,30 @@ class MeshBatches:
             for key, base, count in self.runs:
                 entry = self.entries[key]
                 triangles += entry.triangles * count
-                for batch, a_arr, e_arr, clip in entry.groups:
-                    if (id(a_arr), id(e_arr), clip) != bound:
-                        if dummy is None and (a_arr is None or e_arr is None):
+                for batch, g in entry.groups:
+                    a_arr, e_arr, n_arr = g["albedo_tex"], g["emit_tex"], g["normal_tex"]
+                    state = (id(a_arr), id(e_arr), id(n_arr), g["alpha_clip"],
+                             g["normal_strength"])
+                    if state != bound:
+                        if dummy is None and any(x is None for x in (a_arr, e_arr, n_arr)):
                             dummy = gpu.types.GPUTexture(
                                 (1, 1), format='RGBA32F',
                                 data=gpu.types.Buffer('FLOAT', 4, [1.0] * 4))
                         a_tex, a_h = gpu_texture(a_arr) if a_arr is not None else (dummy, 1)
                         e_tex, e_h = gpu_texture(e_arr) if e_arr is not None else (dummy, 1)
+                        n_tex, n_h = gpu_texture(n_arr) if n_arr is not None else (dummy, 1)
                         shader.uniform_int("use_albedo_tex", int(a_arr is not None))
-                        shader.uniform_int("alpha_clip", int(clip))
+                        shader.uniform_int("alpha_clip", int(g["alpha_clip"]))
                         shader.uniform_int("use_emit_tex", int(e_arr is not None))
                         shader.uniform_int("albedo_base_h", int(a_h))
                         shader.uniform_int("emit_base_h", int(e_h))
+                        shader.uniform_int("use_normal_tex", int(n_arr is not None))
+                        shader.uniform_int("normal_base_h", int(n_h))
+                        shader.uniform_float("normal_strength", float(g["normal_strength"]))
                         shader.uniform_sampler("albedo_tex", a_tex)
                         shader.uniform_sampler("emit_tex", e_tex)
-                        bound = (id(a_arr), id(e_arr), clip)
+                        shader.uniform_sampler("normal_tex", n_tex)
+                        bound = state
                     shader.uniform_int("instance_base", base)
                     batch.draw_instanced(shader, instance_start=0, instance_count=count)
                     draws += 1

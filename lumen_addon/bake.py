@@ -52,6 +52,9 @@ class ObjectInput:
     materials: list = field(default_factory=list)   # [materials.Material]; empty: plain grey
     colors: Optional[np.ndarray] = None        # (T, 3, 3) per-corner linear RGB: the colour
                                                # attribute of Material.vertex_colors materials
+    # (T, 3, 4) per-corner tangent and bitangent sign for normal maps (the G-buffer's only: not
+    # part of any bake hash)
+    tangents: Optional[np.ndarray] = None
     # Seen by camera rays (Blender's Object > Visibility > Camera): the preview's G-buffer skips
     # it, its SDF and cards still block and bounce light. Not part of any bake hash.
     camera_visible: bool = True

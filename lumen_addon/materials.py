@@ -38,6 +38,11 @@ class Material:
     # G-buffer discards it); the SDFs and cards keep the whole faces, as Lumen's distance fields
     # do. Not in the digest: the cards do not depend on it
     alpha_clip: bool = False
+    # a tangent-space normal map (a Normal Map node's Color from an Image Texture, linear data)
+    # and its Strength: the G-buffer's shading normal (the object's `tangents`); the SDFs and
+    # cards keep the geometric normals. Not in the digest: the cards do not depend on it
+    normal_texture: Optional[np.ndarray] = None
+    normal_strength: float = 1.0
 
     def digest(self) -> bytes:
         """Content hash input (textures included), for re-baking only what changed."""

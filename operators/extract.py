@@ -89,6 +89,22 @@ def material_indices(mesh):
     return _read(mesh.loop_triangles, "material_index", len(mesh.loop_triangles), np.int32)
 
 
+def corner_tangents(mesh, loops, layer, warnings):
+    """(T, 3, 4) float32 MikkTSpace tangents (xyz) and bitangent signs of `layer` (a UV map) at
+    each triangle corner, as Blender computes them for its Normal Map node; None (with a
+    warning) when Blender cannot (faces of more than four corners)."""
+    try:
+        mesh.calc_tangents(uvmap=layer.name)
+    except RuntimeError as exc:
+        warnings.append(f"normal maps ignored: Blender cannot compute tangents here ({exc})")
+        return None
+    n = len(mesh.loops)
+    tan = _read(mesh.loops, "tangent", n, np.float32, 3)
+    sign = _read(mesh.loops, "bitangent_sign", n, np.float32)
+    out = np.concatenate([tan, sign[:, None]], axis=1)
+    return out[loops]
+
+
 def corner_uvs(mesh, loops, layer):
     """(T, 3, 2) float32 UVs of `layer` (a MeshUVLoopLayer) at each triangle corner."""
     uv = _read(layer.uv, "vector", len(layer.uv), np.float32, 2)
@@ -278,6 +294,8 @@ class _Closure:
     share: float = 1.0                      # the weight of the part that carries base_tex
     attr: object = None                     # a colour attribute's name in place of base_tex
     clip: bool = False                      # base_tex's alpha cuts the surface out
+    normal_tex: object = None               # a tangent-space normal map (linear data)
+    normal_strength: float = 1.0
 
     def set_base(self, rgb, tex, uv_map, notes, attr, weight: float):
         self.reflect = tuple(weight * float(x) for x in rgb)
@@ -300,6 +318,9 @@ class _Closure:
             share, s = max(textured, key=lambda x: x[0])
             out.base_tex, out.attr, out.base, out.share = s.base_tex, s.attr, s.base, share
             out.clip = s.clip
+        mapped = [s for s in sides if s.normal_tex is not None]
+        if mapped:
+            out.normal_tex, out.normal_strength = mapped[0].normal_tex, mapped[0].normal_strength
             if any(w > 0.0 and o is not s and max(o.reflect) > 0.0
                    for o, w in zip(sides, weights)):
                 out.warnings.append("a Mix or Add Shader blends a texture with another "
@@ -341,7 +362,9 @@ class _Closure:
                             emission_color=self.emission, emission_strength=self.strength,
                             emission_texture=self.emit_tex, opacity=float(self.opacity),
                             vertex_colors=self.attr is not None,
-                            alpha_clip=self.clip and self.base_tex is not None)
+                            alpha_clip=self.clip and self.base_tex is not None,
+                            normal_texture=self.normal_tex,
+                            normal_strength=float(self.normal_strength))
         return MaterialInfo(material, self.uv_maps, bool(self.uv_maps), self.warnings,
                             attribute=self.attr)
 
@@ -572,6 +595,7 @@ class Extractor:
         if kind == 'BSDF_DIFFUSE':
             c = _Closure()
             c.set_base(*self._colour(mat, node.inputs["Color"], "Color"), weight=1.0)
+            self._normal_map(c, node.inputs["Normal"])
             return c, None
         if kind == 'EMISSION':
             c = _Closure(reflect=(0.0, 0.0, 0.0))
@@ -624,6 +648,35 @@ class Extractor:
             self._unread.append(notes.pop())
         return rgb, tex, uv_map, notes, None
 
+    def _normal_map(self, c, socket):
+        """A tangent-space Normal Map node into a shader's Normal, its Color an Image Texture
+        linked straight in: the closure's normal_tex and Strength (the G-buffer's shading
+        normal, as Cycles'); other normal inputs (a Bump node, object or world space) are left
+        out with a warning: the geometric normal."""
+        src = _follow(socket)
+        if src is None:
+            return
+        node = src[0]
+        if node.type != 'NORMAL_MAP' or node.space != 'TANGENT':
+            what = (f"a {node.bl_label} node" if node.type != 'NORMAL_MAP'
+                    else f"a Normal Map in {node.space.lower().replace('_', ' ')} space")
+            c.warnings.append(f"Normal is driven by {what} (not supported); the geometric "
+                              f"normal is used")
+            return
+        strength, driven = _value(node, "Strength", default=1.0)
+        if driven:
+            c.warnings.append(f"the Normal Map's Strength is driven by a node (not supported); "
+                              f"using its value {strength:g}")
+        tex, uv_map, notes, unsupported = self._linked_texture(node.inputs["Color"],
+                                                               "Normal Map Color")
+        if unsupported:
+            notes[-1] += "; the geometric normal is used"
+        c.warnings += notes
+        if tex is None:
+            return
+        c.normal_tex, c.normal_strength = tex, strength
+        c.uv_maps.append(node.uv_map or uv_map)
+
     def _cut_out(self, c, alpha) -> bool:
         """Whether `alpha` (what drives an Alpha or a Mix Factor) is the Alpha of the very image
         the closure's base colour reads: a cut-out (leaves, a fence), which the G-buffer
@@ -660,6 +713,7 @@ class Extractor:
         c = _Closure()
         c.set_base(*self._colour(mat, node.inputs["Base Color"], "Base Color"), weight=1.0)
         cut = self._cut_out(c, _follow(node.inputs["Alpha"]))
+        self._normal_map(c, node.inputs["Normal"])
         opacity, notes = principled_opacity(node, cut)
         c.reflect = tuple(opacity * x for x in c.reflect)
         self._emission(c, node.inputs["Emission Color"], node.inputs["Emission Strength"],
@@ -734,9 +788,10 @@ class MeshData:
     material is see-through (clear_faces)."""
 
     def __init__(self, vertices, triangles, normals=None, uvs=None, material_ids=None,
-                 materials=(), warnings=(), see_through: int = 0, colors=None):
+                 materials=(), warnings=(), see_through: int = 0, colors=None, tangents=None):
         self.vertices, self.triangles = vertices, triangles
         self.colors = colors            # (T, 3, 3) colour attribute values (vertex_colors)
+        self.tangents = tangents        # (T, 3, 4) tangent xyz, bitangent sign (normal maps)
         self.normals, self.uvs, self.material_ids = normals, uvs, material_ids
         self.materials = list(materials)
         self.warnings = list(warnings)
@@ -854,7 +909,7 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
                                                                drop)
             loops = loops[keep]
             colors = colors[keep] if colors is not None else None
-        uvs = None
+        uvs = tangents = None
         if textured and len(triangles):
             names = ("material " if len(textured) == 1 else "materials ") + ", ".join(
                 f"'{n}'" for n in textured)
@@ -865,12 +920,14 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             layer = _uv_layer(mesh, uv_names[0], names, warnings)
             if layer is not None:
                 uvs = corner_uvs(mesh, loops, layer)
+                if any(getattr(m, "normal_texture", None) is not None for m in materials):
+                    tangents = corner_tangents(mesh, loops, layer, warnings)
                 slot_of = np.clip(ids, 0, max(len(slots) - 1, 0))
                 for i, (a, b) in mappings.items():     # each material's Mapping node
                     sel = slot_of == i
                     uvs[sel] = (uvs[sel].astype(np.float64) @ a.T + b).astype(np.float32)
         return MeshData(vertices, triangles, normals, uvs, ids, materials, warnings, see_through,
-                        colors)
+                        colors, tangents)
     finally:
         obj_eval.to_mesh_clear()
 
@@ -1039,7 +1096,7 @@ def extract_scene(depsgraph, view_layer=None):
             two_sided=bool(props.two_sided) if props is not None else False,
             resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
             normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
-            materials=data.materials, colors=data.colors,
+            materials=data.materials, colors=data.colors, tangents=data.tangents,
             camera_visible=(bool(getattr(source, "visible_camera", True))
                             and not flags.indirect_only(inst)),
             holdout=flags.holdout(inst),
@@ -1247,7 +1304,8 @@ class ExtractionCache:
                 two_sided=bool(props.two_sided) if props is not None else False,
                 resolution_scale=float(props.resolution_scale) if props is not None else 1.0,
                 normals=data.normals, uvs=data.uvs, material_ids=data.material_ids,
-                materials=data.materials, colors=data.colors, camera_visible=cam,
+                materials=data.materials, colors=data.colors, tangents=data.tangents,
+                camera_visible=cam,
                 holdout=flags.holdout(inst),
                 casts_shadow=bool(getattr(source, "visible_shadow", True))))
         names = [o.name for o in objects]

@@ -2,6 +2,7 @@
 #include "sky_lib.glsl"
 #include "camera_lib.glsl"
 #include "light_lib.glsl"
+#include "gbuffer_shading_lib.glsl"
 /* Lumen GI direct light per pixel from the G-buffer (needs sdf_lib.glsl, light_lib.glsl,
  * sky_lib.glsl, camera_lib.glsl).
  *
@@ -31,9 +32,9 @@
  * the sky has in its direction (sky_ray), so a bright zenith blocked by a roof darkens more than
  * the same cone toward a dark horizon.
  */
-vec3 sky_light(vec3 p, vec3 n, int cones, int first, int take)
+vec3 sky_light(vec3 p, vec3 n, vec3 ns, int cones, int first, int take)
 {
-  vec3 E = sky_irradiance(n);
+  vec3 E = sky_irradiance(ns);        /* the shading normal's; the cones' visibility n's */
   if (!any(greaterThan(E, vec3(0.0)))) {
     return vec3(0.0);
   }
@@ -99,8 +100,10 @@ void main()
   }
   vec3 p = pos.xyz;
   vec3 n = normalize(texelFetch(gbuf_normal, px, 0).xyz);
+  vec3 ns = gbuf_shading_normal(px);
   if (dot(n, cam_pos - p) < 0.0) {
     n = -n; /* back face: shade the side the camera sees, as Cycles does */
+    ns = -ns;
   }
   vec3 E = vec3(0.0);
   vec3 E_single = vec3(0.0);
@@ -109,8 +112,8 @@ void main()
     if (single && mode == 2) {
       continue;
     }
-    vec3 e = light_irradiance_part(i, p, n, light_samples, light_rotation(px), sample_first,
-                                   sample_take);
+    vec3 e = light_irradiance_part(i, p, n, ns, light_samples, light_rotation(px),
+                                   sample_first, sample_take);
     E += e;
     E_single += single ? e : vec3(0.0);
   }
@@ -121,7 +124,7 @@ void main()
     E += imageLoad(single, px).rgb;
   }
   if (sky_cones > 0) {
-    E += sky_light(p, n, sky_cones, sample_first, sample_take);
+    E += sky_light(p, n, ns, sky_cones, sample_first, sample_take);
   }
   vec3 direct = E / PI;
   vec3 albedo = texelFetch(gbuf_albedo, px, 0).rgb;

@@ -1,10 +1,13 @@
 /* Lumen GI G-buffer: one draw per texture group (world-space vertices, no index buffer).
  * Vertex inputs: pos, nor (world), uv (the corner's UV, zero without a UV map), albedo, emit (per
- * corner, the triangle's material values; with an emission texture emit is the strength).
+ * corner, the triangle's material values; with an emission texture emit is the strength), tan
+ * (world tangent xyz and the bitangent's sign: a normal map's, zero without one).
  * Push constants: view_proj, use_albedo_tex, alpha_clip (a cut-out: discard where the albedo
  * texture's alpha is under 0.5), use_emit_tex, albedo_base_h, emit_base_h (the base
  * level's height), footprint_scale (the share of the pixel's texture footprint one G-buffer
- * filters: 1, or 1 / sqrt(n) for one of n anti-aliasing samples). Samplers: albedo_tex,
+ * filters: 1, or 1 / sqrt(n) for one of n anti-aliasing samples), use_normal_tex,
+ * normal_base_h, normal_strength (a tangent-space normal map, as Cycles' Normal Map node: the
+ * shading normal). Samplers: albedo_tex, normal_tex,
  * emit_tex (RGBA32F: gbuffer.mip_chain, the levels stacked in rows, row 0 = v 0), read with texelFetch and filtered here: anisotropic trilinear over the mip
  * levels of the pixel's UV footprint, each bilinear with texel centres at (i + 0.5) / size and
  * wrapping (repeat); at level 0 exactly lumen_addon.materials.sample_texture. The sampler state
@@ -14,8 +17,11 @@
  *                 holdout, v_holdout, whose other attachments are 0: every pass takes w < 0.5
  *                 for background, and the composites write rgba 0 where w > 0.125)
  *   out_normal:   world normal xyz (interpolated, normalised), w = 1
- *   out_albedo:   base colour rgb (linear; the texture replaces it), w = 1
- *   out_emission: emission colour x strength rgb (texture x strength), w = 1
+ *   out_normal:   the interpolated (geometric) normal; planes, shells and cones use it
+ *   out_albedo:   base colour rgb (linear; the texture replaces it), w = the shading normal's
+ *                 octahedral u (a normal map's, else the interpolated normal;
+ *                 gbuffer_shading_lib.glsl)
+ *   out_emission: emission colour x strength rgb (texture x strength), w = its octahedral v
  * The vertex and fragment stages are separated by the marker line "// FRAGMENT" (without the space).
  */
 void main()
@@ -23,6 +29,7 @@ void main()
   v_pos = pos;
   v_nor = nor;
   v_uv = uv;
+  v_tan = tan;
   v_albedo = albedo;
   v_emit = emit;
   v_holdout = 0.0;
@@ -97,6 +104,38 @@ vec4 sample_mipmapped(sampler2D tex, vec2 uv, int base_h)
   return sum / float(taps);
 }
 
+/* octahedral_lib.glsl's oct_encode (the fragment stage has no includes): the shading normal
+ * packed into the albedo and emission w (gbuffer_shading_lib.glsl decodes it) */
+vec2 gbuf_oct_encode(vec3 d)
+{
+  vec3 p = d / (abs(d.x) + abs(d.y) + abs(d.z));
+  vec2 f = p.xy;
+  if (p.z < 0.0) {
+    f = (1.0 - abs(p.yx)) * vec2(p.x >= 0.0 ? 1.0 : -1.0, p.y >= 0.0 ? 1.0 : -1.0);
+  }
+  return f * 0.5 + 0.5;
+}
+
+/* Cycles' Normal Map node (tangent space): the map's colour c as 2c - 1 in the frame of the
+ * interpolated tangent (made orthogonal to n), sign x n x t and n; Strength s blends from n:
+ * normalize(n + (N - n) s). */
+vec3 normal_mapped(vec3 n, vec3 c)
+{
+  vec3 t = v_tan.xyz - n * dot(n, v_tan.xyz);
+  float tl = length(t);
+  if (tl <= 0.0) {
+    return n;                           /* no tangent (no UVs there): the geometric normal */
+  }
+  t /= tl;
+  vec3 b = (v_tan.w < 0.0 ? -1.0 : 1.0) * cross(n, t);
+  vec3 m = 2.0 * c - 1.0;
+  vec3 N = normalize(m.x * t + m.y * b + m.z * n);
+  if (normal_strength != 1.0) {
+    N = normalize(n + (N - n) * max(normal_strength, 0.0));
+  }
+  return N;
+}
+
 void main()
 {
   if (v_holdout > 0.5) {
@@ -118,8 +157,11 @@ void main()
   out_position = vec4(v_pos, 1.0);
   vec3 n = v_nor;
   float len = length(n);
-  out_normal = vec4(len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0), 1.0);
-  vec3 albedo = base.rgb;
-  out_albedo = vec4(albedo, 1.0);
-  out_emission = vec4(emit, 1.0);
+  n = len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0);
+  vec3 ns = use_normal_tex != 0 ?
+                normal_mapped(n, sample_mipmapped(normal_tex, v_uv, normal_base_h).rgb) : n;
+  vec2 oct = gbuf_oct_encode(ns);
+  out_normal = vec4(n, 1.0);
+  out_albedo = vec4(base.rgb, oct.x);
+  out_emission = vec4(emit, oct.y);
 }

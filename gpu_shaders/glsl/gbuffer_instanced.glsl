@@ -4,7 +4,7 @@
  * (`instances`, RGBA32F, 6 texels per row: the model matrix's rows 0..2, then the normal
  * matrix's rows 0..2, the inverse transpose of its 3x3; texel 3's w is 1 for a holdout) is
  * instance_base + gl_InstanceID.
- * Vertex inputs: pos, nor (local), uv, albedo, emit (per corner, as gbuffer.glsl's).
+ * Vertex inputs: pos, nor, tan (local), uv, albedo, emit (per corner, as gbuffer.glsl's).
  * Push constants: view_proj, instance_base (and the fragment stage's: use_albedo_tex,
  * use_emit_tex, albedo_base_h, emit_base_h, footprint_scale). The fragment stage is gbuffer.glsl's.
  */
@@ -24,6 +24,7 @@ void main()
   v_pos = world;
   v_nor = len > 0.0 ? n / len : n;
   v_uv = uv;
+  v_tan = vec4(dot(m0.xyz, tan.xyz), dot(m1.xyz, tan.xyz), dot(m2.xyz, tan.xyz), tan.w);
   v_albedo = albedo;
   v_emit = emit;
   v_holdout = texelFetch(instances, row_texel(row, 3, 6), 0).w;   /* 1: a holdout */

@@ -168,7 +168,8 @@ vec2 light_rotation(ivec2 px)
  * as its share of the light (k = distance / (radius / sqrt(samples))), and their mean is the
  * soft shadow: a penumbra that grows from the shadow edge both ways, as a path tracer's does,
  * where one cone over the whole light darkens from the edge outwards only. */
-vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int first, int take);
+vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot, int first,
+                           int take);
 
 /* Where a cone towards a light sample `dist` away with a share of radius `sub` ends (what is
  * right behind the light casts nothing), and its k. */
@@ -215,6 +216,28 @@ vec3 light_point(int i, vec3 p, int s, int count, vec2 rot)
   return centre + rr * (cos(phi) * bu + sin(phi) * bv);
 }
 
+/* Cycles' bump shadowing term (Chiang et al. 2019, "Taming the Shadow Terminator"), which it
+ * applies to a BSDF whose shading normal ns (a normal map's) is not the geometric n: light the
+ * geometry would graze fades smoothly instead of lighting the tilted normal fully (a 40 degree
+ * map under a 50 degree sun: 0.96). 1 when ns is n. */
+float bump_shadowing(vec3 n, vec3 ns, vec3 L)
+{
+  float cos_i = dot(ns, L);
+  float cos_d = dot(ns, n);
+  if (cos_i <= 0.0 || cos_d <= 0.0 || cos_d >= 0.99999) {
+    return 1.0;
+  }
+  float g = dot(n, L) / (cos_i * cos_d);
+  if (g >= 1.0) {
+    return 1.0;
+  }
+  if (g < 0.0) {
+    return 0.0;
+  }
+  float g2 = g * g;
+  return -g2 * g + g2 + g;
+}
+
 /* Samples light i takes (1 for a light without radius). */
 int light_count_of(int i, int samples)
 {
@@ -223,15 +246,17 @@ int light_count_of(int i, int samples)
 
 vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
 {
-  return light_irradiance_part(i, p, n, samples, rot, 0, samples);
+  return light_irradiance_part(i, p, n, n, samples, rot, 0, samples);
 }
 
 /* light_irradiance from `take` of the light's `samples` strata, starting at stratum `first`
  * (wrapping): the viewport spreads a light's samples over redraws (direct_light.py), and the mean
  * of the parts of consecutive redraws that cover every stratum once is light_irradiance exactly
- * (each sample keeps the cone width of `samples`). A light with one sample (a sun, a point light
+ * (each sample keeps the cone width of `samples`). n: the geometric normal (the cones' start
+ * and what faces the light), ns: the shading normal (a normal map's; the cosine). A light with one sample (a sun, a point light
  * without radius) returns its whole light from every part. */
-vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int first, int take)
+vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot, int first,
+                           int take)
 {
   vec4 t0 = light_texel(i, 0);
   vec4 t1 = light_texel(i, 1);
@@ -240,8 +265,8 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int fir
   int type = int(t0.x + 0.5);
   if (type == 0) {
     vec3 L = -t1.xyz;
-    float cos_s = dot(n, L);
-    if (cos_s <= 0.0) {
+    float cos_s = dot(ns, L) * bump_shadowing(n, ns, L);
+    if (cos_s <= 0.0 || dot(n, L) <= 0.0) {
       return vec3(0.0);
     }
     return t2.rgb * cos_s * (t2.w > 0.5 ? 1.0 : cone_visibility(p, n, L, LIGHT_SUN_REACH,
@@ -257,8 +282,8 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, int samples, vec2 rot, int fir
     vec3 to = q - p;
     float dist = length(to);
     vec3 L = to / max(dist, 1e-6);
-    float cos_s = dot(n, L);
-    if (cos_s <= 0.0) {
+    float cos_s = dot(ns, L) * bump_shadowing(n, ns, L);
+    if (cos_s <= 0.0 || dot(n, L) <= 0.0) {
       continue;
     }
     vec3 E = t2.rgb / max(dist * dist, 1e-8);

@@ -2,6 +2,7 @@
 #include "sdf_ray_lib.glsl"
 #include "surface_cache_lib.glsl"
 #include "gbuffer_lib.glsl"
+#include "gbuffer_shading_lib.glsl"
 #include "sh_lib.glsl"
 #include "probe_interp_lib.glsl"
 #include "probe_occlusion_lib.glsl"
@@ -83,6 +84,11 @@ void main()
     imageStore(out_image, px, vec4(0.0, 0.0, 0.0, -1.0));
     return;
   }
+  /* the shading normal (a normal map's) for the irradiance; planes and weights keep n (turned
+   * with n when gbuf_surface turned it to the camera) */
+  vec3 ns = gbuf_shading_normal(px);
+  ns = dot(ns, n) < 0.0 ? -ns : ns;
+
   ivec2 atlas = textureSize(probe_info, 0);
   ivec2 grid = uniform_rows > 0 ? ivec2(atlas.x / 4, uniform_rows) : atlas;
   vec2 g = (vec2(px) + 0.5) / float(probe_tile) - 0.5;
@@ -139,7 +145,7 @@ void main()
         for (int i = 0; i < 9; i++) {
           ca[i] = texelFetch(probe_sh, slot * 3 + ivec2(i % 3, i / 3), 0).rgb;
         }
-        Ea += wk * sh9_irradiance(ca, n);
+        Ea += wk * sh9_irradiance(ca, ns);
         wa += wk;
       }
     }
@@ -180,7 +186,7 @@ void main()
     for (int i = 0; i < 9; i++) {
       c[i] = texelFetch(probe_sh, q[k] * 3 + ivec2(i % 3, i / 3), 0).rgb;
     }
-    E += w[k] * sh9_irradiance(c, n);
+    E += w[k] * sh9_irradiance(c, ns);
   }
   imageStore(out_image, px, vec4(max(E, vec3(0.0)) + near, ok));
 }
