@@ -96,7 +96,8 @@ def corner_tangents(mesh, loops, layer, warnings):
     try:
         mesh.calc_tangents(uvmap=layer.name)
     except RuntimeError as exc:
-        warnings.append(f"normal maps ignored: Blender cannot compute tangents here ({exc})")
+        warnings.append(f"normal maps ignored: Blender cannot compute tangents here "
+                        f"({str(exc).strip()})")
         return None
     n = len(mesh.loops)
     tan = _read(mesh.loops, "tangent", n, np.float32, 3)

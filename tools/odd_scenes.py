@@ -436,6 +436,56 @@ def glass_and_shader_trees(bpy):
 
 
 @case
+def imported_material_features(bpy):
+    """What imported models carry: a normal map, a Mapping node, vertex colours, a cut-out leaf
+    and a normal map on a mesh with an n-gon (Blender cannot compute its tangents)."""
+    import numpy as np
+    scene = base(bpy)
+    img = bpy.data.images.new("Detail", 8, 8, alpha=True)
+    px = np.random.default_rng(1).random((8, 8, 4)).astype(np.float32)
+    img.pixels.foreach_set(px.ravel())
+
+    def textured(name, normal=False, mapping=False, cut=False, attribute=False):
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        nodes, links = mat.node_tree.nodes, mat.node_tree.links
+        bsdf = nodes["Principled BSDF"]
+        tex = nodes.new("ShaderNodeTexImage")
+        tex.image = img
+        if attribute:
+            links.new(nodes.new("ShaderNodeVertexColor").outputs["Color"], bsdf.inputs["Base Color"])
+        else:
+            links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+        if mapping:
+            m = nodes.new("ShaderNodeMapping")
+            m.inputs["Scale"].default_value = (4.0, 4.0, 1.0)
+            links.new(nodes.new("ShaderNodeTexCoord").outputs["UV"], m.inputs["Vector"])
+            links.new(m.outputs["Vector"], tex.inputs["Vector"])
+        if cut:
+            links.new(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
+        if normal:
+            nm = nodes.new("ShaderNodeNormalMap")
+            nt = nodes.new("ShaderNodeTexImage")
+            nt.image = img
+            links.new(nt.outputs["Color"], nm.inputs["Color"])
+            links.new(nm.outputs["Normal"], bsdf.inputs["Normal"])
+        return mat
+
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0.0, 0.0, 0.5))
+    bpy.context.object.data.materials.append(textured("Bumpy", normal=True, mapping=True))
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(1.5, 0.0, 0.4))
+    cube = bpy.context.object
+    paint = cube.data.color_attributes.new("Col", 'BYTE_COLOR', 'POINT')
+    paint.data.foreach_set("color", np.tile([0.9, 0.2, 0.1, 1.0], len(cube.data.vertices)))
+    cube.data.materials.append(textured("Painted", attribute=True))
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-1.5, 0.0, 0.8))
+    bpy.context.object.data.materials.append(textured("Leaf", cut=True))
+    bpy.ops.mesh.primitive_circle_add(vertices=12, radius=0.5, fill_type='NGON',
+                                      location=(0.0, 1.5, 0.3))
+    bpy.context.object.data.materials.append(textured("NgonBumps", normal=True))
+
+
+@case
 def factory_startup(bpy):
     # Blender's own start-up scene: the cube, its 1000 W point light, the camera; no floor
     bpy.ops.wm.read_factory_settings(use_empty=False)
