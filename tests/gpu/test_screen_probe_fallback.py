@@ -163,7 +163,8 @@ def _wrapped(self, res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels=No
         cnt2.clear(format='INT', value=(0,))
         screen_probes.INTEGRATE.run((self.width, self.height), scene=res, cache=cache,
                                     px_step=1, px_phase=(0, 0), gbuf_position=g["position"],
-                                    gbuf_normal=g["normal"], probe_info=self.textures["info"],
+                                    gbuf_normal=g["normal"], gbuf_albedo=g["albedo"],
+                                    gbuf_emission=g["emission"], probe_info=self.textures["info"],
                                     probe_normal=self.textures["normal"],
                                     probe_sh=self.textures["sh"], probe_occ=self.textures["occ"],
                                     cam_pos=compute.vec(cam_pos), probe_tile=self.tile,
