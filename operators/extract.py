@@ -276,6 +276,7 @@ class MaterialInfo:
         self.attribute = attribute      # the colour attribute its base colour reads ("": the
                                         # mesh's render colour attribute), or None
         self.mapping = None             # its textures' UV Mapping (A, b), or None
+        self.captured = False           # its textures are material_capture's (UVs optional)
 
 
 @dataclasses.dataclass
@@ -562,12 +563,18 @@ class Extractor:
             reason = why if closure is None else "; ".join(self._unread)
             means = None if self.dry else self._captured(mat)
             if means is not None:
-                return MaterialInfo(
+                emits = means.emission_tex is not None
+                info = MaterialInfo(
                     Material(name=mat.name, base_color=means.albedo,
-                             emission_color=means.emission,
-                             emission_strength=1.0 if max(means.emission) > 0.0 else 0.0,
-                             opacity=means.opacity),
-                    warnings=[f"{reason}; using its mean colours, rendered by Cycles"])
+                             base_color_texture=means.albedo_tex,
+                             emission_color=means.emission if not emits else (1.0, 1.0, 1.0),
+                             emission_strength=1.0 if emits else 0.0,
+                             emission_texture=means.emission_tex, opacity=means.opacity),
+                    uv_maps=[None], textured=True,
+                    warnings=[f"{reason}; using its colours rendered by Cycles over its UV "
+                              f"square"])
+                info.captured = True      # its textures need no UV map: the means serve
+                return info
             if closure is None:
                 return MaterialInfo(fallback, warnings=[f"{reason}; {DISPLAY_COLOUR}"])
             closure.warnings += [f"{r}; {DISPLAY_COLOUR}" for r in self._unread]
@@ -883,7 +890,8 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             if info.mapping is not None:
                 mappings[i] = info.mapping
             if info.textured:
-                textured.append(mat.name)
+                if not (info.captured and not len(mesh.uv_layers)):
+                    textured.append(mat.name)
                 for uv_name in info.uv_maps:
                     if uv_name not in uv_names:
                         uv_names.append(uv_name)

@@ -1,4 +1,4 @@
-"""Materials the extraction cannot read node by node -> their mean colours, rendered by Cycles.
+"""Materials the extraction cannot read node by node -> their colours, rendered by Cycles.
 
 `operators/extract.py` reads a Principled, Diffuse or Emission shader, clear shaders and Mix and
 Add Shaders of them, with colours that are values or Image Textures linked straight in. Anything
@@ -6,19 +6,23 @@ else (a node group, a Toon BSDF, a Color Ramp or a procedural texture before Bas
 fall back to the viewport display colour, which is Blender's default grey unless the artist set
 it: a room of asset-library materials bounced grey light. Here such materials are rendered by
 Cycles, as the world is (world_capture.py): one flat 1 m swatch per material, seen from above by
-an orthographic camera, a few pixels each, its passes read back:
+an orthographic camera, SWATCH x SWATCH pixels each, its passes read back:
     albedo      Diffuse Color + Glossy Color (what the surface reflects, as one diffuse albedo),
-                over the swatch's alpha (the colour of its opaque part)
+                over the swatch's alpha (the colour of its opaque part), per pixel and its mean
     emission    the Emission pass
     opacity     Combined alpha over a transparent film, glass counted transparent
                 (film_transparent_roughness 1): extract.py's see-through rule then applies
-The swatch's texture coordinates are its UVs (0..1) and a 1 m square, so a texture is averaged
-over its image and a procedural one over a metre; a colour attribute reads ATTRIBUTE_GREY (the
-mesh's own colours are not the material's). Captures are remembered by the material's
-content signature (its nodes, inputs, links and node groups: world_capture.tree_signature), so a
-material is rendered once until it is edited; every material a capture finds missing is rendered
-in the same image (one Cycles start: 0.02-0.08 s for 1 to 32 materials, 2 cores). Main thread only: a job
-thread (the UI's F12) that finds no capture falls back to the display colour with a note.
+The swatch's texture coordinates are its UVs (0..1) and a 1 m square: its SWATCH x SWATCH
+pixels are the material over its UV square, which the extraction uses as textures sampled with
+the mesh's UVs (a Color Ramp or Mix on an image, a procedural texture in UV space keep their
+pattern; Generated or Object coordinates are the swatch's, not the mesh's: their pattern is
+approximate, their colours right), and their means serve meshes without UVs; a colour
+attribute reads ATTRIBUTE_GREY (the mesh's own colours are not the material's).
+Captures are remembered by the material's content signature (its nodes, inputs, links and node
+groups: world_capture.tree_signature), so a material is rendered once until it is edited; every
+material a capture finds missing is rendered in the same image (one Cycles start: 0.04 s for
+one material, 0.37 s for 32, 2 cores). Main thread only: a job thread (the UI's F12) that finds
+no capture falls back to the display colour with a note.
 """
 from __future__ import annotations
 
@@ -34,19 +38,24 @@ import numpy as np
 
 from .world_capture import tree_signature
 
-SWATCH = 8              # pixels per swatch side; the inner 4 x 4 are averaged
+SWATCH = 32             # pixels per swatch side: the material over its UV square
 SAMPLES = 16
 _MEANS = OrderedDict()  # signature -> Means (memo of derived data, not render state)
-_KEEP = 1024
+_KEEP = 512             # 24 KB each (two 32 x 32 RGB float textures)
 
 
 class Means:
-    """A material's mean albedo (linear RGB), emission (linear RGB radiance) and opacity."""
+    """A material's mean albedo (linear RGB), emission (linear RGB radiance) and opacity, and
+    the albedo and emission over its UV square (float32 [SWATCH, SWATCH, 3], row 0 at v = 0 as
+    Blender's images; the emission's None when nothing emits): textures the G-buffer and the
+    cards sample with the mesh's UVs, so a Color Ramp, a Mix or a procedural texture keeps its
+    pattern (the mean colours serve a mesh without UVs)."""
 
-    def __init__(self, albedo, emission, opacity):
+    def __init__(self, albedo, emission, opacity, albedo_tex=None, emission_tex=None):
         self.albedo = tuple(float(x) for x in albedo)
         self.emission = tuple(float(x) for x in emission)
         self.opacity = float(opacity)
+        self.albedo_tex, self.emission_tex = albedo_tex, emission_tex
 
     def __repr__(self):
         return f"Means(albedo={self.albedo}, emission={self.emission}, opacity={self.opacity:.3f})"
@@ -210,18 +219,23 @@ def capture(materials) -> list:
             if name not in layers or layers[name].shape[:2] != want:
                 raise RuntimeError(f"the capture has no {name} pass of {want}")
         out = []
-        lo, hi = SWATCH // 4, SWATCH - SWATCH // 4
         for i in range(n):
             x, y = i % cols, i // cols                     # rows top first in the file
-            block = (slice(y * SWATCH + lo, y * SWATCH + hi),
-                     slice(x * SWATCH + lo, x * SWATCH + hi))
+            block = (slice(y * SWATCH, (y + 1) * SWATCH), slice(x * SWATCH, (x + 1) * SWATCH))
 
-            def mean(name):
-                return layers[name][block][..., :3].reshape(-1, 3).mean(0)
-            alpha = float(np.clip(layers["Combined"][block][..., 3].mean(), 0.0, 1.0))
-            reflect = mean("Diffuse Color") + mean("Glossy Color")
-            albedo = np.clip(reflect / max(alpha, 1e-3), 0.0, 1.0) if alpha > 1e-3 else reflect
-            out.append(Means(albedo, np.maximum(mean("Emission"), 0.0), alpha))
+            def tile(name):                                # row 0 at v = 0
+                return np.ascontiguousarray(layers[name][block][::-1, :, :3], np.float32)
+            alpha_px = np.clip(layers["Combined"][block][::-1, :, 3], 0.0, 1.0)
+            alpha = float(alpha_px.mean())
+            reflect = tile("Diffuse Color") + tile("Glossy Color")
+            # the colour of the opaque part, as the mean's (reflect / alpha)
+            tex = np.clip(reflect / np.maximum(alpha_px, 1e-3)[..., None], 0.0, 1.0)
+            tex = np.where(alpha_px[..., None] > 1e-3, tex, reflect).astype(np.float32)
+            mean = reflect.reshape(-1, 3).mean(0)
+            albedo = np.clip(mean / max(alpha, 1e-3), 0.0, 1.0) if alpha > 1e-3 else mean
+            emit = np.maximum(tile("Emission"), 0.0)
+            out.append(Means(albedo, emit.reshape(-1, 3).mean(0), alpha, tex,
+                             emit if emit.max() > 0.0 else None))
         return out
     finally:
         for kind in ("objects", "meshes", "cameras", "scenes"):

@@ -255,7 +255,8 @@ emit(warnings=warnings, no_uv=[objects["NoUV"].uvs is None, mats("NoUV")],
     names = [m[0] for m in r["odd"]]
     colours = {m[0]: np.array(m[1]) for m in r["odd"]}
     assert names == ["Toon Only", "Grouped", "Unlinked", "Ramp"]
-    assert all(m[2] for m in r["odd"])                      # no textures
+    # the captured ones carry their swatch as a texture (their colours over the UV square)
+    assert [m[2] for m in r["odd"]] == [False, False, True, False]
     assert np.allclose(colours["Unlinked"], (0.3, 0.3, 0.9))
     assert np.allclose(colours["Grouped"], 0.0)             # a group with no shader: black
     # the ramp's middle (0.5 grey) through the Principled BSDF: its diffuse and glossy colours
@@ -541,7 +542,12 @@ for i, mat in enumerate((lamp, glass, plain, attr)):
 objects, warnings = extract()
 def read(name):
     m = objects[name].materials[0]
-    return [list(m.base_color), list(m.emission_color), m.emission_strength, m.opacity]
+    emitted = (np.asarray(m.emission_texture).reshape(-1, 3).mean(0) * m.emission_strength
+               if m.emission_texture is not None
+               else np.asarray(m.emission_color) * m.emission_strength)
+    tex = (np.asarray(m.base_color_texture).reshape(-1, 3).mean(0).tolist()
+           if m.base_color_texture is not None else None)
+    return [list(m.base_color), emitted.tolist(), 1.0, m.opacity, tex]
 first = {"Lamp": read("Lamp"), "Plain": read("Plain"), "Attr": read("Attr")}
 first_calls = list(calls)
 objects, _ = extract()                        # remembered: no new capture
@@ -565,6 +571,7 @@ def test_a_material_the_extraction_cannot_read_is_rendered_by_cycles(blender):
     lamp = r["first"]["Lamp"]
     assert np.allclose(np.array(lamp[1]) * lamp[2], (4.0, 2.0, 1.0), rtol=1e-3)
     assert np.allclose(lamp[0], (0.2, 0.5, 0.1), atol=0.04), lamp[0]
+    assert np.allclose(lamp[4], lamp[0], atol=1e-5)     # its swatch texture's mean is the mean
     assert lamp[3] == 1.0
     assert r["first"]["Plain"][0] == [0.2, 0.5, 0.1] or np.allclose(r["first"]["Plain"][0],
                                                                     (0.2, 0.5, 0.1))
