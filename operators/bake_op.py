@@ -18,7 +18,8 @@ import bpy
 from ..lumen_addon.bake import BakeCancelled, BakeSettings, SceneBakeError, bake_scene
 from ..lumen_addon.cache import SCENE_TOKEN, CacheError, folder_name, read_cache, write_cache
 from ..lumen_addon.estimate import MeshSize, estimate
-from .extract import extract_scene, material_emits, mesh_instances
+from .extract import extract_scene, mesh_instances
+from .material_nodes import material_emits
 from .properties import DEFAULT_CACHE_DIR, INT_MAX
 
 # Last successful bake per scene name: reused by the next bake (unchanged meshes are not baked

@@ -392,7 +392,7 @@ def test_see_through_materials_leave_their_faces_out(blender):
 
 
 SHADER_MIXES = """
-from lumen_gi.operators.extract import material_emits
+from lumen_gi.operators.material_nodes import material_emits
 empty_scene()
 img, px = checker_png(Path("checker.png").resolve())
 
