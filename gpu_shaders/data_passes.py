@@ -29,9 +29,9 @@ FALLOFF = {'QUADRATIC': 2.0, 'LINEAR': 1.0, 'INVERSE_QUADRATIC': 0.5}
 
 def shading_normal(position: np.ndarray, albedo: np.ndarray, emission: np.ndarray) -> np.ndarray:
     """float32 [h, w, 4]: the G-buffer's shading normal (a normal map's, else the interpolated
-    normal), which gbuffer.glsl packs octahedrally into the albedo and emission w
-    (gbuffer_shading_lib.glsl decodes it the same way); 0 where no surface is. Cycles' Normal pass
-    is the shading normal."""
+    normal), which gbuffer.glsl packs octahedrally into the albedo and emission w when a drawn
+    mesh has a normal map (gbuffer_shading_lib.glsl decodes it the same way); 0 where no surface
+    is. Cycles' Normal pass is the shading normal."""
     f = np.stack([albedo[..., 3], emission[..., 3]], -1).astype(np.float64) * 2.0 - 1.0
     n = np.concatenate([f, 1.0 - np.abs(f).sum(-1, keepdims=True)], -1)
     t = np.maximum(-n[..., 2:], 0.0)

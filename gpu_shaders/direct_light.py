@@ -29,7 +29,8 @@ DIRECT = compute.Pass("direct_light",
                               ("single", 'RGBA32F', {'READ', 'WRITE'})),
                       push=(('VEC3', 'cam_pos'), ('INT', 'light_count'),
                             ('INT', 'sample_plan'),   # samples + 256 first + 65536 take + 2^24 mode
-                                                      # + 2^28 transparent film
+                                                      # + 2^28 transparent film + 2^29 shading
+                                                      # normals packed (gbuffer.glsl)
                             ('INT', 'sky_cones'), ('MAT4', 'inv_view_proj')))
 ACCUMULATE = compute.Pass("direct_accumulate", samplers=("new_direct", "new_combined"),
                           images=(("direct_mean", 'RGBA32F', {'READ', 'WRITE'}),
@@ -77,7 +78,8 @@ def shade(resources: SceneResources, gbuf: dict, lights: np.ndarray, sky: SkyLig
                cam_pos=compute.vec(cam_pos), light_count=count, sky_cones=int(sky_cones),
                sample_plan=int(light_samples) + 256 * int(first) + 65536 * int(take)
                + 16777216 * mode
-               + 268435456 * int(getattr(sky, "film_alpha", 1.0) == 0.0))   # Film > Transparent
+               + 268435456 * int(getattr(sky, "film_alpha", 1.0) == 0.0)    # Film > Transparent
+               + 536870912 * int(bool(gbuf.get("shading_normals"))))
     out = {"textures": {"direct": direct, "combined": combined}}
     out["compile_seconds"] = t1 - t0
     out["shade_seconds"] = time.perf_counter() - t1

@@ -465,6 +465,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
                                     "shadows are the bake's; press Bake")
     result = Frame(textures, None, width, height)
     result.gbuffer = gbuf["textures"]          # F12's data passes (data_passes.py) read it
+    result.shading_normals = bool(gbuf.get("shading_normals"))
     result.converged = bool(done)
     if KEEP_IMAGES or view != "COMBINED":
         images = dict(position=result.read(g["position"]), normal=result.read(g["normal"]),
@@ -495,6 +496,7 @@ class Frame:
         self.width, self.height = width, height
         self.converged = False       # the viewport's: nothing left to refine (frame())
         self.gbuffer = None          # the G-buffer's textures (position, normal, albedo, emission)
+        self.shading_normals = False  # it packed shading normals (a drawn mesh has a normal map)
 
     def read(self, tex) -> np.ndarray:
         from .resources import read_texture
@@ -559,8 +561,9 @@ def _debug_image(view, state, gbuf, images, cam_pos, width, height, gi_cfg):
     else:
         shown = {"DIRECT": images["direct"], "INDIRECT": images["indirect"],
                  "ALBEDO": images["albedo"],
-                 "NORMAL": data_passes.shading_normal(images["position"], images["albedo"],
-                                                      images["emission"]) * 0.5 + 0.5
+                 "NORMAL": (data_passes.shading_normal(images["position"], images["albedo"],
+                                                       images["emission"])
+                            if gbuf.get("shading_normals") else images["normal"]) * 0.5 + 0.5
                  }.get(view, images["combined"]).copy()
     shown = np.array(shown, np.float32)
     shown[..., 3] = 1.0
@@ -634,7 +637,7 @@ class LumenGIRenderEngine(bpy.types.RenderEngine):
             passes = {name: fr.pass_array(name)
                       for name in ("Combined",) + tuple(p[0] for p in PASSES)
                       if name == "Combined" or fr.textures}
-            if fr.gbuffer is not None and "Normal" in passes:      # the shading normal
+            if fr.shading_normals and "Normal" in passes:   # the normal maps' shading normal
                 g = fr.gbuffer
                 passes["Normal"] = data_passes.shading_normal(
                     fr.read(g["position"]), fr.read(g["albedo"]), fr.read(g["emission"]))

@@ -67,6 +67,7 @@ def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
         info.push_constant('INT', "use_normal_tex")
         info.push_constant('INT', "normal_base_h")
         info.push_constant('FLOAT', "normal_strength")
+        info.push_constant('INT', "pack_shading")
         info.push_constant('FLOAT', "footprint_scale")
         info.sampler(0, 'FLOAT_2D', "albedo_tex")
         info.sampler(1, 'FLOAT_2D', "emit_tex")
@@ -263,6 +264,8 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
         shader.uniform_float("view_proj", mathutils.Matrix(
             np.asarray(view_proj, np.float64).tolist()))
         shader.uniform_float("footprint_scale", 1.0)
+        packed = any(g["normal_tex"] is not None for g in groups)
+        shader.uniform_int("pack_shading", int(packed))
         for g in groups:
             if not len(g["pos"]):
                 continue
@@ -294,6 +297,7 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
     for key in [k for k in cache if k not in used]:
         del cache[key]
     out = {"textures": textures, "depth_texture": depth, "triangles": triangles,
+           "shading_normals": bool(packed),
            "draws": sum(1 for g in groups if len(g["pos"])), "texture_uploads": uploaded,
            "textures_resident": len(cache)}
     out["draw_seconds"] = time.perf_counter() - t1

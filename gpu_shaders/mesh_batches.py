@@ -79,6 +79,7 @@ class MeshBatches:
         self.last = {}             # the last update's counts
         self.source = None         # the last update's inputs (identity: a still frame's are)
         self.generation = 0        # bumped whenever what draw() shows changed (update)
+        self.shading_normals = False   # a drawn mesh has a normal map (update)
         self.drawn = None          # (key, output) of the last draw: a still redraw reuses it
 
     def stats(self) -> dict:
@@ -135,6 +136,11 @@ class MeshBatches:
             self.table_uploads += 1
         if built or uploaded or gone or runs != self.runs:
             self.generation += 1
+        # whether a drawn mesh has a normal map: only then does the G-buffer pack shading
+        # normals and do the direct light and the probes' integration read them (a viewport
+        # redraw of a scene without one paid 2-4% for it: bench/frame_time.py)
+        self.shading_normals = any(g["normal_tex"] is not None for key, _, _ in runs
+                                   for _, g in self.entries[key].groups)
         self.runs = runs
         self.source = source
         self.built_total += built
@@ -209,6 +215,7 @@ class MeshBatches:
                 np.asarray(view_proj, np.float64).tolist()))
             shader.uniform_sampler("instances", self.table)
             shader.uniform_float("footprint_scale", float(footprint_scale))
+            shader.uniform_int("pack_shading", int(self.shading_normals))
             bound = None                  # the textures bound: set again only when they change
             for key, base, count in self.runs:
                 entry = self.entries[key]
@@ -247,7 +254,8 @@ class MeshBatches:
         out = {"textures": textures, "depth_texture": depth, "triangles": triangles,
                "draws": draws, "texture_uploads": uploaded, "textures_resident": len(self.textures),
                "batches_built": self.last.get("built", 0),
-               "instance_table_uploaded": self.last.get("table_uploaded", False)}
+               "instance_table_uploaded": self.last.get("table_uploaded", False),
+               "shading_normals": bool(self.shading_normals)}
         out["draw_seconds"] = time.perf_counter() - t1
         out["seconds"] = time.perf_counter() - t0
         out["reused"] = False

@@ -129,7 +129,7 @@ INTEGRATE = compute.Pass("screen_probe_integrate",
                          images=("out_image", "fb_list", ("fb_counter", 'R32I', {'READ', 'WRITE'})),
                          push=(('VEC3', 'cam_pos'), ('INT', 'probe_tile'), ('INT', 'uniform_rows'),
                                ('IVEC2', 'px_phase'), ('INT', 'px_step'), ('INT', 'fb_turn'),
-                               ('INT', 'fb_skip')))
+                               ('INT', 'fb_skip'), ('INT', 'shading_normals')))
 FALLBACK_GROUP = 64
 FALLBACK_BUDGET = 1.0      # the fallback's rays per frame, in the uniform probes' ray count
 FALLBACK_SKIP_MAX = 16     # screen_probe_fallback.comp.glsl's: a pixel traces at least 1 turn in 16
@@ -370,7 +370,8 @@ class ScreenProbes:
                       cam_pos=cam,
                       probe_tile=self.tile, uniform_rows=gh if adaptive else 0,
                       out_image=tex["integrated"], fb_list=tex["fb_list"],
-                      fb_counter=tex["fb_counter"], fb_turn=fb_turn, fb_skip=fb_skip)
+                      fb_counter=tex["fb_counter"], fb_turn=fb_turn, fb_skip=fb_skip,
+                      shading_normals=int(bool(gbuf.get("shading_normals"))))
         # the pixels integrate listed: their own rays, in full work groups, and only theirs
         # (their count read back: llvmpipe runs an invocation of a tracing shader that returns
         # at once nearly as slowly as one that traces, screen_probe_list.comp.glsl)

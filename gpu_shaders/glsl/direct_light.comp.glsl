@@ -11,7 +11,8 @@
  * one of them), sky_maps (the world), push constants light_count, cam_pos (world), sky_cones
  * (number of sky occlusion cones), inv_view_proj (camera rays for the background),
  * sample_plan = light_samples + 256 * first + 65536 * take + 16777216 * mode
- * + 268435456 * transparent (Film > Transparent: the background rgba 0): samples per light,
+ * + 268435456 * transparent (Film > Transparent: the background rgba 0) + 536870912 * shading
+ * normals packed (a drawn mesh has a normal map: gbuffer_shading_lib.glsl): samples per light,
  * and the part of them and of the sky cones this dispatch evaluates (first 0, take light_samples:
  * all; one int keeps the push constants within 128 bytes); mode 1 also stores the one-sample
  * lights' (suns, lights without radius: light_single) E in `single`, mode 2 reads it from there
@@ -94,13 +95,13 @@ void main()
     camera_ray(px, size, ro, rd);
     /* Film > Transparent: nothing (rgba 0) where no surface is; a holdout (position w 0.25,
      * gbuffer.glsl): nothing either way */
-    imageStore(combined_out, px, sample_plan >= 268435456 || pos.w > 0.125 ?
+    imageStore(combined_out, px, (sample_plan / 268435456) % 2 == 1 || pos.w > 0.125 ?
                                      vec4(0.0) : vec4(sky_background(rd), 1.0));
     return;
   }
   vec3 p = pos.xyz;
   vec3 n = normalize(texelFetch(gbuf_normal, px, 0).xyz);
-  vec3 ns = gbuf_shading_normal(px);
+  vec3 ns = gbuf_shading_normal(px, n, (sample_plan / 536870912) % 2 == 1);
   if (dot(n, cam_pos - p) < 0.0) {
     n = -n; /* back face: shade the side the camera sees, as Cycles does */
     ns = -ns;

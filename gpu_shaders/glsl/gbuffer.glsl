@@ -7,7 +7,8 @@
  * level's height), footprint_scale (the share of the pixel's texture footprint one G-buffer
  * filters: 1, or 1 / sqrt(n) for one of n anti-aliasing samples), use_normal_tex,
  * normal_base_h, normal_strength (a tangent-space normal map, as Cycles' Normal Map node: the
- * shading normal). Samplers: albedo_tex, normal_tex,
+ * shading normal), pack_shading (1 when a drawn mesh has a normal map: only then are shading
+ * normals packed, and read: gbuffer_shading_lib.glsl). Samplers: albedo_tex, normal_tex,
  * emit_tex (RGBA32F: gbuffer.mip_chain, the levels stacked in rows, row 0 = v 0), read with texelFetch and filtered here: anisotropic trilinear over the mip
  * levels of the pixel's UV footprint, each bilinear with texel centres at (i + 0.5) / size and
  * wrapping (repeat); at level 0 exactly lumen_addon.materials.sample_texture. The sampler state
@@ -20,8 +21,9 @@
  *   out_normal:   the interpolated (geometric) normal; planes, shells and cones use it
  *   out_albedo:   base colour rgb (linear; the texture replaces it), w = the shading normal's
  *                 octahedral u (a normal map's, else the interpolated normal;
- *                 gbuffer_shading_lib.glsl)
+ *                 gbuffer_shading_lib.glsl) with pack_shading, else 1
  *   out_emission: emission colour x strength rgb (texture x strength), w = its octahedral v
+ *                 with pack_shading, else 1
  * The vertex and fragment stages are separated by the marker line "// FRAGMENT" (without the space).
  */
 void main()
@@ -158,9 +160,12 @@ void main()
   vec3 n = v_nor;
   float len = length(n);
   n = len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0);
-  vec3 ns = use_normal_tex != 0 ?
-                normal_mapped(n, sample_mipmapped(normal_tex, v_uv, normal_base_h).rgb) : n;
-  vec2 oct = gbuf_oct_encode(ns);
+  vec2 oct = vec2(1.0);
+  if (pack_shading != 0) {     /* some drawn mesh has a normal map: every pixel packs its own */
+    vec3 ns = use_normal_tex != 0 ?
+                  normal_mapped(n, sample_mipmapped(normal_tex, v_uv, normal_base_h).rgb) : n;
+    oct = gbuf_oct_encode(ns);
+  }
   out_normal = vec4(n, 1.0);
   out_albedo = vec4(base.rgb, oct.x);
   out_emission = vec4(emit, oct.y);

@@ -86,7 +86,7 @@ void main()
   }
   /* the shading normal (a normal map's) for the irradiance; planes and weights keep n (turned
    * with n when gbuf_surface turned it to the camera) */
-  vec3 ns = gbuf_shading_normal(px);
+  vec3 ns = gbuf_shading_normal(px, n, shading_normals != 0);
   ns = dot(ns, n) < 0.0 ? -ns : ns;
 
   ivec2 atlas = textureSize(probe_info, 0);

@@ -169,7 +169,7 @@ def _wrapped(self, res, gsdf, cache, gbuf, cam_pos, sky, frame, t_max, voxels=No
                                     probe_sh=self.textures["sh"], probe_occ=self.textures["occ"],
                                     cam_pos=compute.vec(cam_pos), probe_tile=self.tile,
                                     uniform_rows=0, out_image=img, fb_list=lst2, fb_counter=cnt2,
-                                    fb_turn=f, fb_skip=4)
+                                    fb_turn=f, fb_skip=4, shading_normals=0)
         counted2 = compute.texture((1, 1))
         COUNT.run_groups(1, fb_counter=cnt2, out_image=counted2)
         n2 = int(compute.read(counted2).reshape(-1)[0])
