@@ -483,6 +483,12 @@ class MaterialReader:
             return c, None
         if kind in CLEAR_SHADERS:
             return _Closure(reflect=(0.0, 0.0, 0.0), opacity=0.0), None
+        if kind == 'HOLDOUT':       # Cycles: no light from it, nothing seen through it
+            c = _Closure(reflect=(0.0, 0.0, 0.0))
+            c.warnings.append("is a Holdout shader: a black surface here (the camera sees it "
+                              "black where Cycles leaves the pixel transparent; Object > "
+                              "Visibility > Holdout is a holdout here too)")
+            return c, None
         if kind in ('MIX_SHADER', 'ADD_SHADER') and depth < MAX_SHADER_DEPTH:
             first = 1 if kind == 'MIX_SHADER' else 0
             sides = []

@@ -336,6 +336,7 @@ cases = {
     "Refraction": surface("Refraction", "ShaderNodeBsdfRefraction"),
     "Transparent": surface("Transparent", "ShaderNodeBsdfTransparent"),
     "Translucent": surface("Translucent", "ShaderNodeBsdfTranslucent"),
+    "Holdout": surface("Holdout", "ShaderNodeHoldout"),
     "MixFade": mixed("MixFade", 0.8),
     "MixFadeFlipped": mixed("MixFadeFlipped", 0.8, clear_first=True),
     "ShadowTrick": mixed("ShadowTrick", 0.0, light_path="Is Shadow Ray"),
@@ -373,8 +374,8 @@ def test_see_through_materials_leave_their_faces_out(blender):
     print(r["warnings"])
     opacity = {"Opaque": 1.0, "Glass": 0.0, "MetalGlass": 1.0, "HalfGlass": 0.5, "Faded": 0.2,
                "Veiled": 0.7, "GlassBSDF": 0.0, "Refraction": 0.0, "Transparent": 0.0,
-               "Translucent": 1.0, "MixFade": 0.2, "MixFadeFlipped": 0.8, "ShadowTrick": 0.0,
-               "CameraTrick": 1.0, "CutOut": 1.0}
+               "Translucent": 1.0, "Holdout": 1.0, "MixFade": 0.2, "MixFadeFlipped": 0.8,
+               "ShadowTrick": 0.0, "CameraTrick": 1.0, "CutOut": 1.0}
     assert "Pane" not in objects
     for name, want in opacity.items():
         tris, verts, top, normals, ids, used, opacities, base = objects[name]
@@ -388,6 +389,9 @@ def test_see_through_materials_leave_their_faces_out(blender):
     messages = {who: m for who, m in r["warnings"]}
     assert "cut-outs are read only from the Alpha" in messages["CutOut"], messages
     assert "Translucent" in messages and "rendered by Cycles" in messages["Translucent"]
+    # a Holdout shader is not see-through (Cycles' alpha 0 there is no window): black, opaque
+    assert "Holdout shader" in messages["Holdout"]
+    assert np.allclose(objects["Holdout"][7], 0.0)
     assert not any(n in messages for n in ("Glass", "GlassBSDF", "ShadowTrick", "MixFade", "Pane"))
 
 
