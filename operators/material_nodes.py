@@ -435,11 +435,13 @@ class MaterialReader:
             reason = why if closure is None else "; ".join(self._unread)
             means = None if self.dry else self._captured(mat)
             if means is not None:
-                emits = means.emission_tex is not None
+                # the means are the colours where a mesh has no UVs (the textures' elsewhere;
+                # a texture is scaled by the strength, 1)
+                emits = means.emission_tex is not None or max(means.emission) > 0.0
                 info = MaterialInfo(
                     Material(name=mat.name, base_color=means.albedo,
                              base_color_texture=means.albedo_tex,
-                             emission_color=means.emission if not emits else (1.0, 1.0, 1.0),
+                             emission_color=means.emission,
                              emission_strength=1.0 if emits else 0.0,
                              emission_texture=means.emission_tex, opacity=means.opacity),
                     uv_maps=[None], textured=True,

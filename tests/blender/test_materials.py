@@ -551,7 +551,8 @@ def read(name):
                else np.asarray(m.emission_color) * m.emission_strength)
     tex = (np.asarray(m.base_color_texture).reshape(-1, 3).mean(0).tolist()
            if m.base_color_texture is not None else None)
-    return [list(m.base_color), emitted.tolist(), 1.0, m.opacity, tex]
+    return [list(m.base_color), emitted.tolist(), 1.0, m.opacity, tex,
+            (np.asarray(m.emission_color) * m.emission_strength).tolist()]
 first = {"Lamp": read("Lamp"), "Plain": read("Plain"), "Attr": read("Attr")}
 first_calls = list(calls)
 objects, _ = extract()                        # remembered: no new capture
@@ -576,6 +577,8 @@ def test_a_material_the_extraction_cannot_read_is_rendered_by_cycles(blender):
     assert np.allclose(np.array(lamp[1]) * lamp[2], (4.0, 2.0, 1.0), rtol=1e-3)
     assert np.allclose(lamp[0], (0.2, 0.5, 0.1), atol=0.04), lamp[0]
     assert np.allclose(lamp[4], lamp[0], atol=1e-5)     # its swatch texture's mean is the mean
+    # a mesh without UVs reads the mean emission (colour x strength), not the texture's scale
+    assert np.allclose(lamp[5], (4.0, 2.0, 1.0), rtol=1e-3), lamp[5]
     assert lamp[3] == 1.0
     assert r["first"]["Plain"][0] == [0.2, 0.5, 0.1] or np.allclose(r["first"]["Plain"][0],
                                                                     (0.2, 0.5, 0.1))
