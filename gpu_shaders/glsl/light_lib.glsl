@@ -297,6 +297,10 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot
     }
     else if (type == 3) {
       E *= max(cos_l, 0.0);
+      if (t3.w >= 0.0 && cos_l > 0.0) {   /* Spread (operators/lights.py: spread_of) */
+        float tan_a = sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l;
+        E *= max(1.0 - tan_a / max(t3.w, 1e-4), 0.0);
+      }
     }
     if (all(equal(E, vec3(0.0)))) {
       continue;

@@ -57,6 +57,10 @@ void main()
     }
     else if (type == 3) {
       mask = max(cos_l, 0.0);
+      if (t3.w >= 0.0 && cos_l > 0.0) {   /* Spread, as light_lib.glsl's */
+        float tan_a = sqrt(max(1.0 - cos_l * cos_l, 0.0)) / cos_l;
+        mask *= max(1.0 - tan_a / max(t3.w, 1e-4), 0.0);
+      }
     }
     phi = t2.rgb * mask * omega;
     area = omega * r * r / max(abs(dot(n, to_light)), 0.05);

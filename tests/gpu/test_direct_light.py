@@ -23,7 +23,7 @@ from blender_runner import run_python  # noqa: E402
 from exr_passes import read_pass  # noqa: E402
 
 SIZE = 64
-LIGHTS = ("SUN", "POINT", "SPOT", "AREA", "TUNED", "HDRI")
+LIGHTS = ("SUN", "POINT", "SPOT", "AREA", "TUNED", "FANNED", "HDRI")
 LIMIT = 0.05
 # Measured relMSE above the limit: {light type: reason} (xfail, non-strict).
 KNOWN_MISSES = {}
@@ -82,7 +82,7 @@ def make_light(kind):
         scene.world = hdri_world("courtyard.exr")
         scene.lumen.engine.render_quality = "OFF"   # the sky light is then Diffuse Direct, as in Cycles
         return black
-    data = bpy.data.lights.new(kind, "AREA" if kind == "TUNED" else kind)
+    data = bpy.data.lights.new(kind, "AREA" if kind in ("TUNED", "FANNED") else kind)
     obj = link(bpy.data.objects.new(kind, data))
     if kind == "SUN":
         data.energy = 3.0
@@ -100,6 +100,11 @@ def make_light(kind):
     elif kind == "AREA":
         data.energy = 150.0
         data.size = 0.5
+        obj.location = (-1.0, 1.0, 2.8)
+    elif kind == "FANNED":          # a gridded softbox: Spread 60 degrees
+        data.energy = 150.0
+        data.size = 0.5
+        data.spread = math.radians(60.0)
         obj.location = (-1.0, 1.0, 2.8)
     else:               # an area light's other settings: Normalize off, Temperature, Exposure
         data.energy = 150.0 / 0.25 / 2.0 ** 0.5      # per m^2 of its 0.5 x 0.5 m, exposure 0.5
