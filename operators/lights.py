@@ -13,8 +13,8 @@ light texture read by glsl/direct_light.comp.glsl):
 
 Units follow Cycles (intern/cycles/scene/light.cpp: point and spot strength x 1/(4 pi), area
 x 1/pi, or x area / pi with Normalize off, sun unchanged; the colour times the Temperature's
-blackbody colour and 2^Exposure: light_colour), so that irradiance E at a surface point, and Cycles' Diffuse Direct pass
-(E / pi for a Lambert BSDF, the albedo left out), come out the same:
+blackbody colour and 2^Exposure: light_colour), so that irradiance E at a surface point, and
+Cycles' Diffuse Direct pass (E / pi for a Lambert BSDF, the albedo left out), come out the same:
     sun:   colour x strength = irradiance E (W/m^2) on a surface facing it
     point: colour x P / (4 pi) = radiant intensity I (W/sr); E = I cos / d^2
     spot:  the same as point, times Cycles' spot mask smoothstep((cos - cos_half) / (blend (1 - cos_half)))
