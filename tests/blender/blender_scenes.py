@@ -110,6 +110,69 @@ def bake(op=None, **kwargs):
         return None, str(exc)
 
 
+def render_lumen(save=(), quality: str = "LOW", exr: str | None = None):
+    """F12 with Lumen GI (render quality `quality`, anti-aliasing off: one G-buffer sample at
+    each pixel centre, as Cycles' 0.01 px filter). Saves LAST_RENDER's images named in `save`
+    as <name>.npy (rows bottom first), writes the render as the multilayer EXR `exr` when
+    given, and returns LAST_RENDER; a render error fails the snippet with its traceback."""
+    from lumen_gi.gpu_shaders import engine
+
+    scene = bpy.context.scene
+    scene.render.engine = "LUMEN_GI"
+    scene.lumen.engine.render_quality = quality
+    scene.lumen.engine.aa_samples = 1
+    if exr is not None:
+        _multilayer(scene, exr)
+    bpy.ops.render.render(write_still=exr is not None)
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    for name in save:
+        np.save(f"{name}.npy", R[name])
+    return R
+
+
+def render_cycles(samples: int = 16, exr: str | None = None, passes=(), bounces=None):
+    """The same scene by Cycles on the CPU (no denoiser, a 0.01 px filter: pixel centres):
+    the multilayer EXR `exr` with the View Layer passes named in `passes` (use_pass_* names),
+    or, without `exr`, Combined as cycles.npy (float32 [h, w, 4], rows bottom first)."""
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = samples
+    scene.cycles.device = "CPU"
+    scene.render.filter_size = 0.01
+    if bounces is not None:
+        scene.cycles.max_bounces = bounces
+    layer = scene.view_layers[0]
+    for name in passes:
+        setattr(layer, name, True)
+    if exr is not None:
+        _multilayer(scene, exr)
+        bpy.ops.render.render(write_still=True)
+        return
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):
+        settings.media_type = 'IMAGE'
+    settings.file_format = "OPEN_EXR"
+    settings.color_mode = "RGBA"
+    scene.render.filepath = str(Path("cycles.exr").resolve())
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(scene.render.filepath)
+    px = np.empty(len(img.pixels), np.float32)
+    img.pixels.foreach_get(px)
+    w, h = img.size
+    np.save("cycles.npy", px.reshape(h, w, 4))
+
+
+def _multilayer(scene, path):
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):            # Blender 5.0 on
+        settings.media_type = 'MULTI_LAYER_IMAGE'
+    else:
+        settings.file_format = 'OPEN_EXR_MULTILAYER'
+    settings.color_depth = '32'
+    scene.render.filepath = str(Path(path).resolve())
+
+
 def snapshot(folder) -> dict:
     """sha256 of every file in a folder, to prove a failed bake touched nothing."""
     folder = Path(folder)

@@ -22,9 +22,6 @@ from exr_passes import read_pass  # noqa: E402
 SIZE = 64
 
 SNIPPET = f"""
-import pathlib
-from lumen_gi.gpu_shaders import engine
-
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=2.0)
 mat = principled("Ramp")
@@ -43,29 +40,8 @@ scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 res, err = bake()
 assert err is None, err
-scene.render.engine = "LUMEN_GI"
-scene.lumen.engine.render_quality = "LOW"
-scene.lumen.engine.aa_samples = 1
-bpy.ops.render.render()
-R = engine.LAST_RENDER
-assert "error" not in R, R.get("traceback", R.get("error"))
-np.save("albedo.npy", R["albedo"])
-np.save("position.npy", R["position"])
-scene.render.engine = "CYCLES"
-scene.cycles.samples = 4
-scene.cycles.device = "CPU"
-scene.render.filter_size = 0.01
-vl = scene.view_layers[0]
-vl.use_pass_diffuse_color = True
-vl.use_pass_glossy_color = True
-st = scene.render.image_settings
-if hasattr(st, "media_type"):
-    st.media_type = 'MULTI_LAYER_IMAGE'
-else:
-    st.file_format = 'OPEN_EXR_MULTILAYER'
-st.color_depth = '32'
-scene.render.filepath = str(pathlib.Path("cycles.exr").resolve())
-bpy.ops.render.render(write_still=True)
+render_lumen(save=("albedo", "position"))
+render_cycles(4, exr="cycles.exr", passes=("use_pass_diffuse_color", "use_pass_glossy_color"))
 """
 
 

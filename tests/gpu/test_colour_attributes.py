@@ -20,8 +20,6 @@ SIZE = 48
 PAINT = ((0.7, 0.15, 0.1), (0.1, 0.5, 0.3))
 
 SNIPPET = f"""
-from lumen_gi.gpu_shaders import engine
-
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 mesh = bpy.data.meshes.new("Floor")
 mesh.from_pydata([(-3, -2, 0), (0, -2, 0), (3, -2, 0), (-3, 2, 0), (0, 2, 0), (3, 2, 0)], [],
@@ -47,35 +45,15 @@ scene.render.resolution_percentage = 100
 res, err = bake()
 assert err is None, err
 
-scene.render.engine = "LUMEN_GI"
-scene.lumen.engine.render_quality = "LOW"
-scene.lumen.engine.aa_samples = 1
-bpy.ops.render.render()
-R = engine.LAST_RENDER
-assert "error" not in R, R.get("traceback", R.get("error"))
-np.save("lumen.npy", R["combined"])
-np.save("albedo.npy", R["albedo"])
-np.save("position.npy", R["position"])
-
-scene.render.engine = "CYCLES"
-scene.cycles.samples = 32
-scene.cycles.device = "CPU"
-scene.render.filter_size = 0.01
-scene.render.image_settings.file_format = "OPEN_EXR"
-scene.render.image_settings.color_mode = "RGBA"
-scene.render.filepath = str(__import__("pathlib").Path("cycles.exr").resolve())
-bpy.ops.render.render(write_still=True)
-img = bpy.data.images.load(scene.render.filepath)
-px = np.empty(len(img.pixels), np.float32)
-img.pixels.foreach_get(px)
-np.save("cycles.npy", px.reshape({SIZE}, {SIZE}, 4))
+render_lumen(save=("combined", "albedo", "position"))
+render_cycles(32)
 """
 
 
 def test_colour_attribute_paints_the_floor_as_in_cycles(tmp_path):
     run = run_python(SNIPPET, tmp_path, timeout=600)
     assert run.returncode == 0, run.explain()
-    ours = np.load(tmp_path / "lumen.npy")
+    ours = np.load(tmp_path / "combined.npy")
     albedo = np.load(tmp_path / "albedo.npy")
     pos = np.load(tmp_path / "position.npy")
     ref = np.load(tmp_path / "cycles.npy")

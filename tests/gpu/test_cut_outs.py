@@ -24,8 +24,6 @@ from blender_runner import run_python  # noqa: E402
 SIZE = 64
 
 SNIPPET = f"""
-from lumen_gi.gpu_shaders import engine
-
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=12.0)
 bpy.context.object.data.materials.append(principled("Floor", (0.8, 0.8, 0.8)))
@@ -88,27 +86,8 @@ scene.render.resolution_percentage = 100
 res, err = bake()
 assert err is None, err
 
-scene.render.engine = "LUMEN_GI"
-scene.lumen.engine.render_quality = "LOW"
-scene.lumen.engine.aa_samples = 1
-bpy.ops.render.render()
-R = engine.LAST_RENDER
-assert "error" not in R, R.get("traceback", R.get("error"))
-np.save("position.npy", R["position"])
-np.save("view_proj.npy", R["view_proj"])
-
-scene.render.engine = "CYCLES"
-scene.cycles.samples = 4
-scene.cycles.device = "CPU"
-scene.render.filter_size = 0.01
-scene.render.image_settings.file_format = "OPEN_EXR"
-scene.render.image_settings.color_mode = "RGBA"
-scene.render.filepath = str(__import__("pathlib").Path("cycles.exr").resolve())
-bpy.ops.render.render(write_still=True)
-out = bpy.data.images.load(scene.render.filepath)
-px = np.empty(len(out.pixels), np.float32)
-out.pixels.foreach_get(px)
-np.save("cycles.npy", px.reshape({SIZE}, {SIZE}, 4))
+render_lumen(save=("position", "view_proj"))
+render_cycles(4)
 """
 
 

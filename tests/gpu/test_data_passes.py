@@ -41,27 +41,8 @@ scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 res, err = bake()
 assert err is None, err
-st = scene.render.image_settings
-if hasattr(st, "media_type"):
-    st.media_type = 'MULTI_LAYER_IMAGE'
-else:
-    st.file_format = 'OPEN_EXR_MULTILAYER'
-st.color_depth = '32'
-import pathlib
-scene.render.engine = "LUMEN_GI"
-scene.lumen.engine.render_quality = "LOW"
-scene.lumen.engine.aa_samples = 1
-scene.render.filepath = str(pathlib.Path("lumen.exr").resolve())
-bpy.ops.render.render(write_still=True)
-from lumen_gi.gpu_shaders import engine
-R = engine.LAST_RENDER
-assert "error" not in R, R.get("traceback", R.get("error"))
-scene.render.engine = "CYCLES"
-scene.cycles.samples = 4
-scene.cycles.device = "CPU"
-scene.render.filter_size = 0.01
-scene.render.filepath = str(pathlib.Path("cycles.exr").resolve())
-bpy.ops.render.render(write_still=True)
+R = render_lumen(exr="lumen.exr")
+render_cycles(4, exr="cycles.exr")
 emit(written=R["passes_written"])
 """
 

@@ -27,8 +27,7 @@ SIZE = 48
 TILT = math.radians(40.0)
 
 SNIPPET = f"""
-import math, pathlib
-from lumen_gi.gpu_shaders import engine
+import math
 
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=4.0)
@@ -64,33 +63,10 @@ scene.render.resolution_x = scene.render.resolution_y = {SIZE}
 scene.render.resolution_percentage = 100
 res, err = bake()
 assert err is None, err
-vl = scene.view_layers[0]
-vl.use_pass_diffuse_direct = True
-vl.use_pass_normal = True
-st = scene.render.image_settings
-if hasattr(st, "media_type"):
-    st.media_type = 'MULTI_LAYER_IMAGE'
-else:
-    st.file_format = 'OPEN_EXR_MULTILAYER'
-st.color_depth = '32'
-scene.render.engine = "LUMEN_GI"
-scene.lumen.engine.render_quality = "OFF"
-scene.lumen.engine.aa_samples = 1
-scene.render.filepath = str(pathlib.Path("lumen.exr").resolve())
-bpy.ops.render.render(write_still=True)
-R = engine.LAST_RENDER
-assert "error" not in R, R.get("traceback", R.get("error"))
-np.save("normal.npy", R["normal"])
-np.save("albedo.npy", R["albedo"])
-np.save("emission.npy", R["emission"])
-np.save("position.npy", R["position"])
-scene.render.engine = "CYCLES"
-scene.cycles.samples = 16
-scene.cycles.device = "CPU"
-scene.cycles.max_bounces = 0
-scene.cycles.filter_width = 0.01
-scene.render.filepath = str(pathlib.Path("cycles.exr").resolve())
-bpy.ops.render.render(write_still=True)
+scene.view_layers[0].use_pass_diffuse_direct = True
+scene.view_layers[0].use_pass_normal = True
+R = render_lumen(save=("normal", "albedo", "emission", "position"), quality="OFF", exr="lumen.exr")
+render_cycles(16, exr="cycles.exr", bounces=0)
 emit(notes=R.get("notes", []))
 """
 

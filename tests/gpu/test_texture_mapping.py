@@ -23,8 +23,6 @@ SIZE = 96
 A, B = (0.8, 0.2, 0.1), (0.1, 0.3, 0.8)
 
 SNIPPET = f"""
-from lumen_gi.gpu_shaders import engine
-
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 img = bpy.data.images.new("Checker", 8, 8, alpha=False, float_buffer=True)
 i = np.arange(8) // 4
@@ -60,29 +58,9 @@ scene.render.resolution_percentage = 100
 res, err = bake()
 assert err is None, err
 
-scene.render.engine = "LUMEN_GI"
-scene.lumen.engine.render_quality = "LOW"
-scene.lumen.engine.aa_samples = 1
-bpy.ops.render.render()
-R = engine.LAST_RENDER
-assert "error" not in R, R.get("traceback", R.get("error"))
-np.save("albedo.npy", R["albedo"])
-np.save("position.npy", R["position"])
+R = render_lumen(save=("albedo", "position"))
 emit(notes=R.get("notes", []))
-
-scene.render.engine = "CYCLES"
-scene.cycles.samples = 1
-scene.cycles.device = "CPU"
-scene.render.filter_size = 0.01
-scene.view_layers[0].use_pass_diffuse_color = True
-st = scene.render.image_settings
-if hasattr(st, "media_type"):
-    st.media_type = 'MULTI_LAYER_IMAGE'
-else:
-    st.file_format = 'OPEN_EXR_MULTILAYER'
-st.color_depth = '32'
-scene.render.filepath = str(__import__("pathlib").Path("cycles.exr").resolve())
-bpy.ops.render.render(write_still=True)
+render_cycles(1, exr="cycles.exr", passes=("use_pass_diffuse_color",))
 """
 
 
