@@ -36,7 +36,7 @@ class Material:
     vertex_colors: bool = False
     # a cut-out: the base colour texture's alpha under 0.5 is a hole for the camera (the
     # G-buffer discards it); the SDFs and cards keep the whole faces, as Lumen's distance fields
-    # do. Not in the digest: the cards do not depend on it
+    # do, and the cards' albedo is weighted by the alpha (the leaves reflect, the holes do not)
     alpha_clip: bool = False
     # a tangent-space normal map (a Normal Map node's Color from an Image Texture, linear data)
     # and its Strength: the G-buffer's shading normal (the object's `tangents`); the SDFs and
@@ -49,6 +49,8 @@ class Material:
         h = hashlib.sha1(repr((self.name, tuple(map(float, self.base_color)),
                                tuple(map(float, self.emission_color)),
                                float(self.emission_strength), bool(self.vertex_colors))).encode())
+        if self.alpha_clip:               # only then: other materials keep their digests
+            h.update(b"alpha_clip")
         for tex in (self.base_color_texture, self.emission_texture):
             if tex is None:
                 h.update(b"-")
@@ -59,8 +61,9 @@ class Material:
         return h.digest()
 
 
-def sample_texture(tex: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup with wrapping; texel centres at (i + 0.5) / size. Returns (N, 3) RGB."""
+def sample_texture(tex: np.ndarray, uv: np.ndarray, alpha: bool = False) -> np.ndarray:
+    """Bilinear lookup with wrapping; texel centres at (i + 0.5) / size. Returns (N, 3) RGB, or
+    with `alpha` (N, 4) RGBA (alpha 1 for a texture without one)."""
     t = np.asarray(tex, np.float32)
     if t.ndim == 2:
         t = t[:, :, None]
@@ -73,9 +76,11 @@ def sample_texture(tex: np.ndarray, uv: np.ndarray) -> np.ndarray:
     x1, y1 = (x0 + 1) % w, (y0 + 1) % h
     c = (t[y0, x0] * (1 - fx) * (1 - fy) + t[y0, x1] * fx * (1 - fy)
          + t[y1, x0] * (1 - fx) * fy + t[y1, x1] * fx * fy)
+    if alpha:
+        a = c[:, 3:4] if c.shape[1] == 4 else np.ones((len(c), 1), c.dtype)
     if c.shape[1] == 1:
         c = np.repeat(c, 3, axis=1)
-    return c[:, :3]
+    return np.concatenate([c[:, :3], a], axis=1) if alpha else c[:, :3]
 
 
 def shade(materials, material_ids: np.ndarray, uv: Optional[np.ndarray],
@@ -94,6 +99,9 @@ def shade(materials, material_ids: np.ndarray, uv: Optional[np.ndarray],
             continue
         if m.vertex_colors and colors is not None:
             albedo[sel] = colors[sel]
+        elif m.base_color_texture is not None and uv is not None and m.alpha_clip:
+            rgba = sample_texture(m.base_color_texture, uv[sel], alpha=True)
+            albedo[sel] = rgba[:, :3] * rgba[:, 3:4]      # a cut-out: its holes reflect nothing
         elif m.base_color_texture is not None and uv is not None:
             albedo[sel] = sample_texture(m.base_color_texture, uv[sel])
         else:

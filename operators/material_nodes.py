@@ -579,7 +579,8 @@ class MaterialReader:
             return False
         c.clip = True
         c.warnings.append("is a cut-out (its Base Color image's Alpha): the camera sees through "
-                          "its holes; its shadows and bounce light are the whole faces'")
+                          "its holes; its shadows are the whole faces' (its bounce light is "
+                          "weighed by the alpha)")
         return True
 
     def _emission(self, c, colour_socket, strength_socket, colour_label, strength_label):

@@ -117,6 +117,30 @@ def test_colour_attribute_is_interpolated_across_each_triangle():
     assert 0.3 < plain.mean() < 0.7
 
 
+def test_a_cut_out_reflects_only_where_its_alpha_is():
+    """A cut-out's cards (Material.alpha_clip) keep the whole faces but weigh the albedo by the
+    texture's alpha: away from the holes' edges a texel is the colour or black; the same
+    texture without the flag is the colour everywhere (alpha ignored)."""
+    colour = np.array([0.2, 0.6, 0.3], np.float32)
+    i = np.arange(8) // 2
+    tex = np.ones((8, 8, 4), np.float32)
+    tex[..., :3] = colour
+    tex[..., 3] = ((i[:, None] + i[None, :]) % 2).astype(np.float32)
+    v, f, uv = plane()
+    for clip in (True, False):
+        mc = bake_mesh_cards(v, f, texel_density=64, uvs=uv,
+                             materials=[Material(base_color_texture=tex, alpha_clip=clip)])
+        card = next(c for c in mc.cards if c.axis == 5)
+        got = card.albedo[card.opacity > 0]
+        if not clip:
+            assert np.allclose(got, colour, atol=1e-6)
+            continue
+        solid = np.all(np.abs(got - colour) < 1e-5, axis=1)
+        hole = np.all(np.abs(got) < 1e-5, axis=1)
+        assert solid.mean() > 0.1 and hole.mean() > 0.1        # bilinear: edges blend a texel
+        assert abs(got.mean(0)[1] / colour[1] - 0.5) < 0.05    # half of the light reflected
+
+
 def test_room_with_pillar_seen_from_inside():
     v, f = shapes.room_with_pillar()
     mc = bake_mesh_cards(v, f, texel_density=20)
