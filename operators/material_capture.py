@@ -36,7 +36,8 @@ from collections import OrderedDict
 import bpy
 import numpy as np
 
-from .world_capture import tree_signature
+from ..lumen_addon.materials import DEFAULT_ALBEDO
+from .world_capture import remove_blocks, scratch_scene, tree_signature
 
 SWATCH = 32             # pixels per swatch side: the material over its UV square
 SAMPLES = 16
@@ -67,45 +68,47 @@ def signature(mat) -> str:
     return hashlib.sha1(repr(parts).encode()).hexdigest()[:16]
 
 
-def remembered(mat):
-    """The capture of `mat` if one is remembered for its current content, else None."""
-    hit = _MEANS.get(signature(mat))
+def remembered(key: str):
+    """The capture remembered for a material's signature `key`, else None."""
+    hit = _MEANS.get(key)
     if hit is not None:
-        _MEANS.move_to_end(signature(mat))
+        _MEANS.move_to_end(key)
     return hit
 
 
-def means(mat, others=()):
-    """Means of `mat`: remembered, or rendered now together with those of `others` (materials
-    that will be asked for next) that are not remembered either. None off the main thread or
-    when Cycles fails (the caller keeps its fallback; the exception is not raised)."""
-    hit = remembered(mat)
+def means(mat, others=(), key: str | None = None):
+    """Means of `mat` (its signature `key`, computed when not given): remembered, or rendered
+    now together with those of `others` (materials that will be asked for next) that are not
+    remembered either. None off the main thread or when Cycles fails (the caller keeps its
+    fallback; the exception is not raised)."""
+    key = key or signature(mat)
+    hit = remembered(key)
     if hit is not None:
         return hit
     if threading.current_thread() is not threading.main_thread():
         return None
-    batch, seen = [], set()
-    for m in (mat, *others):
-        key = signature(m)
-        if key not in seen and key not in _MEANS:
-            seen.add(key)
-            batch.append((key, m))
+    batch, seen = [(key, mat)], {key}
+    for m in others:
+        k = signature(m)
+        if k not in seen and k not in _MEANS:
+            seen.add(k)
+            batch.append((k, m))
     try:
         found = capture([m for _, m in batch])
     except Exception:   # noqa: BLE001 - a failed capture leaves the display colour, named
         return None
-    for (key, _), value in zip(batch, found):
-        _MEANS[key] = value
-        _MEANS.move_to_end(key)
+    for (k, _), value in zip(batch, found):
+        _MEANS[k] = value
+        _MEANS.move_to_end(k)
     while len(_MEANS) > _KEEP:
         _MEANS.popitem(last=False)
-    return _MEANS.get(signature(mat))
+    return _MEANS.get(key)
 
 
 # What a colour attribute reads on a swatch (its mesh's colours are not the material's): the
 # default albedo, so that a Color Attribute straight into Base Color reads as the display
 # colour did, and an image multiplied by one keeps most of its mean
-ATTRIBUTE_GREY = (0.8, 0.8, 0.8)
+ATTRIBUTE_GREY = DEFAULT_ALBEDO
 
 
 def attribute_names(tree, seen=None) -> set:
@@ -154,25 +157,13 @@ def capture(materials) -> list:
     cols = int(np.ceil(np.sqrt(n)))
     rows = int(np.ceil(n / cols))
     folder = tempfile.mkdtemp(prefix="lumen_materials_")
-    made = {"objects": [], "meshes": [], "cameras": [], "scenes": []}
+    made = []                      # (datablock, bpy.data collection), removed in reverse
     try:
-        scene = bpy.data.scenes.new("Lumen Material Capture")
-        made["scenes"].append(scene)
-        scene.render.engine = 'CYCLES'
-        cy = scene.cycles
-        cy.device = 'CPU'
-        cy.samples = SAMPLES
-        cy.use_adaptive_sampling = False
-        cy.use_denoising = False
-        cy.pixel_filter_type = 'BOX'
-        cy.filter_width = 1.0
-        cy.film_transparent_glass = True
-        cy.film_transparent_roughness = 1.0
+        scene = scratch_scene("Lumen Material Capture", (cols * SWATCH, rows * SWATCH), SAMPLES)
+        made.append((scene, "scenes"))
+        scene.cycles.film_transparent_glass = True
+        scene.cycles.film_transparent_roughness = 1.0
         scene.render.film_transparent = True
-        scene.render.resolution_x, scene.render.resolution_y = cols * SWATCH, rows * SWATCH
-        scene.render.resolution_percentage = 100
-        scene.render.use_compositing = False
-        scene.render.use_sequencer = False
         settings = scene.render.image_settings
         if hasattr(settings, "media_type"):          # Blender 5.0 on
             settings.media_type = 'MULTI_LAYER_IMAGE'
@@ -190,7 +181,7 @@ def capture(materials) -> list:
         for i, mat in enumerate(materials):
             x, y = i % cols, rows - 1 - i // cols
             mesh = bpy.data.meshes.new("Lumen Material Swatch")
-            made["meshes"].append(mesh)
+            made.append((mesh, "meshes"))
             mesh.from_pydata([(x, y, 0), (x + 1, y, 0), (x + 1, y + 1, 0), (x, y + 1, 0)], [],
                              [(0, 1, 2, 3)])
             mesh.uv_layers.new(name="UVMap").data.foreach_set("uv", uv)
@@ -199,14 +190,14 @@ def capture(materials) -> list:
                 attr.data.foreach_set("color", grey)
             mesh.materials.append(mat)
             ob = bpy.data.objects.new("Lumen Material Swatch", mesh)
-            made["objects"].append(ob)
+            made.append((ob, "objects"))
             scene.collection.objects.link(ob)
         cam = bpy.data.cameras.new("Lumen Material Capture")
-        made["cameras"].append(cam)
+        made.append((cam, "cameras"))
         cam.type = 'ORTHO'
         cam.ortho_scale = float(max(cols, rows))
         cam_ob = bpy.data.objects.new("Lumen Material Capture", cam)
-        made["objects"].append(cam_ob)
+        made.append((cam_ob, "objects"))
         cam_ob.location = (cols / 2.0, rows / 2.0, 5.0)
         scene.collection.objects.link(cam_ob)
         scene.camera = cam_ob
@@ -238,12 +229,7 @@ def capture(materials) -> list:
                              emit if emit.max() > 0.0 else None))
         return out
     finally:
-        for kind in ("objects", "meshes", "cameras", "scenes"):
-            for block in made[kind]:
-                try:
-                    getattr(bpy.data, kind).remove(block)
-                except (ReferenceError, RuntimeError):
-                    pass
+        remove_blocks(reversed(made))
         shutil.rmtree(folder, ignore_errors=True)
 
 

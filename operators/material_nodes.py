@@ -17,7 +17,7 @@ import threading
 
 import numpy as np
 
-from ..lumen_addon.materials import Material
+from ..lumen_addon.materials import DEFAULT_ALBEDO, Material
 
 # Colour spaces whose byte pixels are already linear (or data: normal maps, masks).
 _LINEAR_SPACES = {"Non-Color", "scene_linear", "ACEScg", "ACES2065-1", "Linear Rec.709",
@@ -58,16 +58,26 @@ def _rgb(socket):
     return tuple(float(c) for c in socket.default_value[:3])
 
 
+def surface_of(mat):
+    """((node, socket) feeding the active Material Output's Surface, None) or (None, why not)."""
+    tree = getattr(mat, "node_tree", None)
+    if tree is None:
+        return None, "has no shader nodes"
+    out = tree.get_output_node('EEVEE') or tree.get_output_node('CYCLES')
+    if out is None:
+        return None, "has no active Material Output node"
+    src = _follow(out.inputs["Surface"])
+    if src is None:
+        return None, "has nothing connected to the Material Output's Surface"
+    return src, None
+
+
 def material_emits(mat) -> bool:
     """Whether `mat` emits as the bake reads it (a Principled BSDF's Emission Strength or an
     Emission shader's Strength, with a colour above black or an Image Texture linked to it,
     also inside the Mix and Add Shaders the conversion follows), without reading any image:
     cheap enough for the N-panel's estimate (bake.too_small_for_cards keeps an emitter's cards)."""
-    tree = getattr(mat, "node_tree", None)
-    if tree is None:
-        return False
-    out = tree.get_output_node('EEVEE') or tree.get_output_node('CYCLES')
-    return _emits(_follow(out.inputs["Surface"]) if out is not None else None, 0)
+    return _emits(surface_of(mat)[0], 0)
 
 
 def _emits(src, depth: int) -> bool:
@@ -241,13 +251,13 @@ class _Closure:
             share, s = max(textured, key=lambda x: x[0])
             out.base_tex, out.attr, out.base, out.share = s.base_tex, s.attr, s.base, share
             out.clip = s.clip
-        mapped = [s for s in sides if s.normal_tex is not None]
-        if mapped:
-            out.normal_tex, out.normal_strength = mapped[0].normal_tex, mapped[0].normal_strength
             if any(w > 0.0 and o is not s and max(o.reflect) > 0.0
                    for o, w in zip(sides, weights)):
                 out.warnings.append("a Mix or Add Shader blends a texture with another "
                                     "surface's colour (not supported); using the texture")
+        mapped = [s for s in sides if s.normal_tex is not None]
+        if mapped:
+            out.normal_tex, out.normal_strength = mapped[0].normal_tex, mapped[0].normal_strength
         lit = [(w * s.strength, s) for s, w in zip(sides, weights) if w * s.strength != 0.0]
         emitted = [e for e in lit if e[1].emit_tex is not None]
         if emitted:
@@ -293,9 +303,6 @@ class _Closure:
 
 
 DISPLAY_COLOUR = "using its viewport display colour"
-# what a colour attribute's reflected light counts for in a Mix or Add Shader's colour (unknown
-# per material; the default albedo)
-ATTRIBUTE_MEAN = (0.8, 0.8, 0.8)
 
 
 def _same_mapping(a, b) -> bool:
@@ -329,11 +336,7 @@ def bpy_materials():
 def needs_capture(mat) -> bool:
     """Whether the extraction reads `mat` only in part (a shader or a colour input it does not
     follow), so that its colours come from material_capture. Loads no image."""
-    tree = getattr(mat, "node_tree", None)
-    if tree is None:
-        return False
-    out = tree.get_output_node('EEVEE') or tree.get_output_node('CYCLES')
-    src = _follow(out.inputs["Surface"]) if out is not None else None
+    src, _why = surface_of(mat)
     if src is None:
         return False
     ex = MaterialReader(dry=True)
@@ -416,19 +419,9 @@ class MaterialReader:
 
     def _convert_material(self, mat):
         fallback = Material(name=mat.name, base_color=_display_colour(mat))
-        tree = mat.node_tree
-        if tree is None:
-            return MaterialInfo(fallback, warnings=["has no shader nodes; using its viewport "
-                                                    "display colour"])
-        out = tree.get_output_node('EEVEE') or tree.get_output_node('CYCLES')
-        if out is None:
-            return MaterialInfo(fallback, warnings=["has no active Material Output node; using "
-                                                    "its viewport display colour"])
-        src = _follow(out.inputs["Surface"])
+        src, why = surface_of(mat)
         if src is None:
-            return MaterialInfo(fallback, warnings=["has nothing connected to the Material "
-                                                    "Output's Surface; using its viewport "
-                                                    "display colour"])
+            return MaterialInfo(fallback, warnings=[f"{why}; {DISPLAY_COLOUR}"])
         self._unread, self._mapping = [], False
         closure, why = self._shader(mat, src[0], 0)
         if closure is None or self._unread:
@@ -461,11 +454,12 @@ class MaterialReader:
         material in the file that needs it and is not remembered (one Cycles image), or None."""
         from . import material_capture
 
-        hit = material_capture.remembered(mat)
+        key = material_capture.signature(mat)       # a walk over its nodes: once
+        hit = material_capture.remembered(key)
         if hit is not None or threading.current_thread() is not threading.main_thread():
             return hit            # a job thread (the UI's F12) cannot render: display colour
         others = [m for m in bpy_materials() if m != mat and m.users and needs_capture(m)]
-        return material_capture.means(mat, others)
+        return material_capture.means(mat, others, key)
 
     def _shader(self, mat, node, depth):
         """(_Closure of the shader `node`, None) or (None, why it is not read): a Principled,
@@ -527,8 +521,8 @@ class MaterialReader:
         colour."""
         linked = _follow(socket)
         attr = colour_attribute(linked)
-        if attr is not None:
-            return ATTRIBUTE_MEAN, None, None, [], attr
+        if attr is not None:    # its colour in a Mix or Add Shader's: unknown, the default
+            return DEFAULT_ALBEDO, None, None, [], attr
         rgb = _rgb(socket)
         tex, uv_map, notes, unsupported = self._linked_texture(socket, label)
         if unsupported:                   # _convert_material says what it used instead

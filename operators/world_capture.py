@@ -143,6 +143,37 @@ def _view_dependent_notes(world) -> list:
     return notes
 
 
+def scratch_scene(name: str, size, samples: int):
+    """A new scene rendering with Cycles on the CPU at `size` (w, h), `samples` per pixel, no
+    adaptive sampling, no denoiser, a one-pixel box filter, neither compositor nor sequencer:
+    what the captures render with (this world's, material_capture's). The caller removes it
+    (remove_blocks)."""
+    scene = bpy.data.scenes.new(name)
+    scene.render.engine = 'CYCLES'
+    scene.cycles.device = 'CPU'
+    scene.cycles.samples = samples
+    scene.cycles.use_adaptive_sampling = False
+    scene.cycles.use_denoising = False
+    scene.cycles.pixel_filter_type = 'BOX'
+    scene.cycles.filter_width = 1.0
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.use_compositing = False
+    scene.render.use_sequencer = False
+    return scene
+
+
+def remove_blocks(blocks):
+    """Remove (datablock, bpy.data collection name) pairs in order; one already gone (None,
+    removed with its user) is passed over."""
+    for block, coll in blocks:
+        if block is not None:
+            try:
+                getattr(bpy.data, coll).remove(block)
+            except (ReferenceError, RuntimeError):
+                pass
+
+
 def capture_equirect(world, size=CAPTURE_SIZE, samples: int = CAPTURE_SAMPLES) -> np.ndarray:
     """float32 [h, w, 3]: the world's radiance rendered by Cycles through an equirectangular
     camera (rows top first; sky.py's layout). Main thread only. Raises RuntimeError on failure."""
@@ -151,19 +182,8 @@ def capture_equirect(world, size=CAPTURE_SIZE, samples: int = CAPTURE_SAMPLES) -
     folder = tempfile.mkdtemp(prefix="lumen_world_")
     scene = cam = cam_ob = None
     try:
-        scene = bpy.data.scenes.new("Lumen World Capture")
+        scene = scratch_scene("Lumen World Capture", size, samples)
         scene.world = world
-        scene.render.engine = 'CYCLES'
-        scene.cycles.device = 'CPU'
-        scene.cycles.samples = samples
-        scene.cycles.use_adaptive_sampling = False
-        scene.cycles.use_denoising = False
-        scene.cycles.pixel_filter_type = 'BOX'
-        scene.cycles.filter_width = 1.0
-        scene.render.resolution_x, scene.render.resolution_y = size
-        scene.render.resolution_percentage = 100
-        scene.render.use_compositing = False
-        scene.render.use_sequencer = False
         scene.render.film_transparent = False
         scene.render.image_settings.file_format = 'OPEN_EXR'
         scene.render.image_settings.color_depth = '32'
@@ -190,12 +210,7 @@ def capture_equirect(world, size=CAPTURE_SIZE, samples: int = CAPTURE_SAMPLES) -
             raise RuntimeError(f"unexpected capture {getattr(px, 'shape', None)}")
         return np.ascontiguousarray(px[..., :3], np.float32)
     finally:
-        for block, coll in ((cam_ob, "objects"), (cam, "cameras"), (scene, "scenes")):
-            if block is not None:
-                try:
-                    getattr(bpy.data, coll).remove(block)
-                except (ReferenceError, RuntimeError):
-                    pass
+        remove_blocks(((cam_ob, "objects"), (cam, "cameras"), (scene, "scenes")))
         shutil.rmtree(folder, ignore_errors=True)
 
 

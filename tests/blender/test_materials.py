@@ -451,6 +451,12 @@ m, nodes, links = tree("DimLamp")
 out(m, combine(m, "ShaderNodeMixShader", diffuse(nodes, (0.5, 0.5, 0.5)),
                emission(nodes, (1.0, 1.0, 1.0), 4.0), fac=0.5)); mats["DimLamp"] = m
 m, nodes, links = tree("Toon"); out(m, nodes.new("ShaderNodeBsdfToon")); mats["Toon"] = m
+m, nodes, links = tree("TexMix")                # a texture mixed with a plain colour
+d = diffuse(nodes, (0.1, 0.5, 0.9))
+tex = nodes.new("ShaderNodeTexImage"); tex.image = img
+links.new(tex.outputs["Color"], d.inputs["Color"])
+out(m, combine(m, "ShaderNodeMixShader", d, diffuse(nodes, (0.8, 0.0, 0.0)), fac=0.5))
+mats["TexMix"] = m
 equivalent = principled("PrincipledLamp", base=(0.0, 0.0, 0.0), emission=(1.0, 0.5, 0.25),
                         strength=5.0)
 mats["PrincipledLamp"] = equivalent
@@ -495,9 +501,11 @@ def test_diffuse_emission_mix_and_add_shaders_are_read(blender):
     assert m["DimLamp"][3] == 2.0
     assert emits == {"Diffuse": False, "DiffuseTex": False, "Lamp": True, "LampTex": True,
                      "Half": False, "GlowingWall": True, "DimLamp": True, "Toon": False,
-                     "PrincipledLamp": True}
+                     "TexMix": False, "PrincipledLamp": True}
+    assert m["TexMix"][1]                                          # the texture is kept
     messages = {who: what for who, what in r["warnings"]}
-    assert list(messages) == ["Toon"], messages
+    assert sorted(messages) == ["TexMix", "Toon"], messages
+    assert "blends a texture" in messages["TexMix"]
     assert "Toon BSDF" in messages["Toon"] and "rendered by Cycles" in messages["Toon"]
 
 
