@@ -295,7 +295,7 @@ def frame(state, depsgraph, scene, view_proj, cam_pos, clip_end, width, height,
     stale_seconds = time.perf_counter() - t_stale
     t1 = time.perf_counter()
     changes = state.sync(bake, matrices, lights,
-                         no_shadow=ext.no_shadow if objects is not None else frozenset())
+                         shadow_pass=ext.shadow_pass if objects is not None else {})
     if state.sky.update(sky_maps):
         changes.add("sky")
     res = state.resources

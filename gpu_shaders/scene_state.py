@@ -69,7 +69,8 @@ class SceneState:
         self.names = None            # instance names of the object table on the GPU
         self.matrices = None         # their matrices
         self.matrices_source = None  # the dict they came from (sync's still-frame check)
-        self.no_shadow = frozenset()  # instance names whose rows say "casts no shadow"
+        self.shadow_pass = {}        # {instance name: share of light its shadow lets pass}:
+                                     # the rows' texel 9 y (1: casts no shadow; a cut-out's)
         self.left_out = []           # instances with a singular transform (parked rows)
         self.gone = []               # baked instances the scene no longer has (parked rows)
         self.stale = StaleCheck()    # objects added or edited since the bake (engine.frame)
@@ -112,7 +113,7 @@ class SceneState:
         self.mesh_batches = None     # mesh_batches.MeshBatches: the G-buffer's meshes and
                                      # instance table on the GPU
 
-    def plan(self, bake, matrices: dict, lights, table=None, no_shadow=None) -> set:
+    def plan(self, bake, matrices: dict, lights, table=None, shadow_pass=None) -> set:
         """The resources a sync with these inputs would upload (no side effects); `table`:
         instance_table(bake, matrices) when the caller has it."""
         names, keys, mats = table if table is not None else instance_table(bake, matrices)
@@ -122,7 +123,7 @@ class SceneState:
             changes |= {"atlas", "indirection", "objects"}
         elif names != self.names or mats.shape != self.matrices.shape \
                 or not np.array_equal(mats, self.matrices) \
-                or (no_shadow is not None and no_shadow != self.no_shadow):
+                or (shadow_pass is not None and shadow_pass != self.shadow_pass):
             changes.add("objects")
         if self.lights is None or rows.shape != self.lights.shape \
                 or not np.array_equal(rows, self.lights):
@@ -131,23 +132,24 @@ class SceneState:
             changes.add("cards")
         return changes
 
-    def sync(self, bake, matrices: dict, lights, no_shadow=frozenset()) -> set:
+    def sync(self, bake, matrices: dict, lights, shadow_pass=None) -> set:
         """Upload what changed; returns the set of re-uploaded resources. The same bake, the
         same `matrices` dict object (ExtractionCache.matrices: no walk since the last sync) and
-        equal light rows change nothing: no loop over the instances. `no_shadow`: the instance
-        names that cast no shadow (their rows' texel 9 y = 1: sdf_lib.glsl sdf_shadow_rays)."""
+        equal light rows change nothing: no loop over the instances. `shadow_pass`: {instance
+        name: share of light its shadow lets pass} (1: casts none; a cut-out's holes: less) for
+        the instances that let some pass, their rows' texel 9 y (sdf_lib.glsl sdf_shadow_rays)."""
         rows = np.asarray(lights, np.float32).reshape(-1, 16)
-        no_shadow = frozenset(no_shadow)
+        shadow_pass = dict(shadow_pass or {})
         if bake is self.bake and matrices is self.matrices_source and self.lights is not None \
                 and rows.shape == self.lights.shape and np.array_equal(rows, self.lights) \
-                and no_shadow == self.no_shadow:
+                and shadow_pass == self.shadow_pass:
             self.syncs += 1
             self.last_changes = set()
             return set()
         table = instance_table(bake, matrices)          # a loop over the bake's instances
-        changes = self.plan(bake, matrices, lights, table, no_shadow)
+        changes = self.plan(bake, matrices, lights, table, shadow_pass)
         names, keys, mats = table
-        self.no_shadow = no_shadow
+        self.shadow_pass = shadow_pass
         if "atlas" in changes:
             self._upload_all(bake, names, keys, mats)
         elif "objects" in changes:
@@ -199,8 +201,9 @@ class SceneState:
                                                   data=float_buffer(rows))
 
     def _shadow_flags(self, rows, names):
-        """Texel 9 y of each row: 1 for an instance that casts no shadow."""
-        rows[:, 9, 1] = np.isin(names, list(self.no_shadow)) if self.no_shadow else 0.0
+        """Texel 9 y of each row: the share of light its shadow lets pass (shadow_pass)."""
+        rows[:, 9, 1] = [self.shadow_pass.get(n, 0.0) for n in names] if self.shadow_pass \
+            else 0.0
 
     def _upload_objects(self, bake, names, keys, mats):
         """Rebuild only the object table texture (and its object grid) from the packed offsets

@@ -66,6 +66,9 @@ class ObjectInput:
     # visibility cones pass it (a window pane, a light blocker); it still bounces and blocks GI.
     # Not part of any bake hash.
     casts_shadow: bool = True
+    # The share of light its cut-outs' holes let through one layer of its surface
+    # (materials.shadow_transmission): shadow cones pass it by that much. Not part of any hash.
+    shadow_transmission: float = 0.0
 
 
 NO_CARDS = "0"                           # Instance.cards of an object too small for cards

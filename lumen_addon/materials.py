@@ -112,3 +112,56 @@ def shade(materials, material_ids: np.ndarray, uv: Optional[np.ndarray],
                    else np.asarray(m.emission_color, np.float32)[None, :3])
             emissive[sel] = col * np.float32(m.emission_strength)
     return albedo, emissive
+
+
+# Points per triangle where shadow_transmission reads a cut-out's alpha (fewer on big meshes: at
+# most COVERAGE_SAMPLES in all, at least one per triangle)
+COVERAGE_POINTS = 256
+COVERAGE_SAMPLES = 1 << 18
+
+
+def shadow_transmission(vertices, triangles, uvs, material_ids, materials) -> float:
+    """The share of light that passes one layer of the mesh's surface through its cut-outs' holes
+    (alpha under 0.5): 0 for an opaque mesh, 0.5 for a plane cut into a checker. Area-weighted over
+    every triangle, so a tree's opaque trunk counts with its leaves.
+
+    Why: the SDFs keep a cut-out's whole faces (a leaf card is a plane to them), so its shadow
+    would be the whole card's. The shadow cones let this share through each such surface they
+    cross (light_lib.glsl), as Lumen's distance fields treat foliage as partly occluding: the mean
+    light under a canopy is right, the pattern of its holes is not drawn.
+    Numpy only: stratified points on each triangle, the texture's bilinear alpha there."""
+    mats = list(materials)
+    if not mats or uvs is None or material_ids is None or not len(triangles):
+        return 0.0
+    cut = np.array([m.alpha_clip and m.base_color_texture is not None for m in mats], bool)
+    if not cut.any():
+        return 0.0
+    v = np.asarray(vertices, np.float64)
+    tri = np.asarray(triangles, np.int64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        area = 0.5 * np.linalg.norm(np.cross(v[tri[:, 1]] - v[tri[:, 0]],
+                                             v[tri[:, 2]] - v[tri[:, 0]]), axis=1)
+    area[~np.isfinite(area)] = 0.0                # a NaN vertex: its triangles weigh nothing
+    total = float(area.sum())
+    if not np.isfinite(total) or total <= 0.0:
+        return 0.0
+    ids = np.clip(np.asarray(material_ids, np.int64), 0, len(mats) - 1)
+    uv = np.asarray(uvs, np.float64)
+    holes = 0.0
+    for k in np.flatnonzero(cut):          # a loop over cut-out materials, each vectorised
+        sel = np.flatnonzero(ids == k)
+        if not sel.size:
+            continue
+        n = int(np.clip(COVERAGE_SAMPLES // sel.size, 1, COVERAGE_POINTS))
+        # stratified barycentric points (a rank-1 lattice folded into the triangle)
+        i = np.arange(n) + 0.5
+        a, b = i / n, np.modf(i * 0.6180339887498949)[0]
+        fold = a + b > 1.0
+        a, b = np.where(fold, 1.0 - a, a), np.where(fold, 1.0 - b, b)
+        c = uv[sel]                                            # (S, 3, 2)
+        pts = (c[:, None, 0] * (1.0 - a - b)[None, :, None] + c[:, None, 1] * a[None, :, None]
+               + c[:, None, 2] * b[None, :, None]).reshape(-1, 2)
+        alpha = sample_texture(mats[k].base_color_texture, pts, alpha=True)[:, 3]
+        open_share = (alpha.reshape(sel.size, n) < 0.5).mean(axis=1)
+        holes += float((open_share * area[sel]).sum())
+    return float(np.clip(holes / total, 0.0, 1.0))

@@ -24,7 +24,7 @@ import dataclasses
 import numpy as np
 
 from ..lumen_addon.bake import ObjectInput
-from ..lumen_addon.materials import SEE_THROUGH, Material
+from ..lumen_addon.materials import SEE_THROUGH, Material, shadow_transmission
 from .material_nodes import MaterialReader
 
 _EMPTY_V = np.zeros((0, 3), np.float64)
@@ -160,8 +160,10 @@ class MeshData:
     material is see-through (clear_faces)."""
 
     def __init__(self, vertices, triangles, normals=None, uvs=None, material_ids=None,
-                 materials=(), warnings=(), see_through: int = 0, colors=None, tangents=None):
+                 materials=(), warnings=(), see_through: int = 0, colors=None, tangents=None,
+                 transmission: float = 0.0):
         self.vertices, self.triangles = vertices, triangles
+        self.transmission = float(transmission)   # light through its cut-outs' holes (shadows)
         self.colors = colors            # (T, 3, 3) colour attribute values (vertex_colors)
         self.tangents = tangents        # (T, 3, 4) tangent xyz, bitangent sign (normal maps)
         self.normals, self.uvs, self.material_ids = normals, uvs, material_ids
@@ -300,7 +302,8 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
                     sel = slot_of == i
                     uvs[sel] = (uvs[sel].astype(np.float64) @ a.T + b).astype(np.float32)
         return MeshData(vertices, triangles, normals, uvs, ids, materials, warnings, see_through,
-                        colors, tangents)
+                        colors, tangents,
+                        shadow_transmission(vertices, triangles, uvs, ids, materials))
     finally:
         obj_eval.to_mesh_clear()
 
@@ -473,7 +476,8 @@ def extract_scene(depsgraph, view_layer=None):
             camera_visible=(bool(getattr(source, "visible_camera", True))
                             and not flags.indirect_only(inst)),
             holdout=flags.holdout(inst),
-            casts_shadow=bool(getattr(source, "visible_shadow", True))))
+            casts_shadow=bool(getattr(source, "visible_shadow", True)),
+            shadow_transmission=data.transmission))
     if getattr(depsgraph, "mode", "VIEWPORT") != 'RENDER':
         for name in hidden_renderable(view_layer or depsgraph.view_layer):
             ex.warn(name, "hidden in the viewport, so not baked; F12 renders it without its "
@@ -553,7 +557,8 @@ class ExtractionCache:
         self.walked = True        # the last update walked the depsgraph
         self.last = None          # the last walk's result
         self.matrices = {}        # {instance name: world 4x4} of the last walk (one dict object)
-        self.no_shadow = frozenset()  # instance names that cast no shadow (the last walk's)
+        self.shadow_pass = {}     # {instance name: share of light its shadow lets pass} of the
+                                  # last walk's instances that let some pass (1: casts none)
         self.lights = None        # light_table rows of the last light walk
         self.light_dirty = True
         self.moved = set()        # objects that only moved since the last update (mark_moved)
@@ -680,7 +685,8 @@ class ExtractionCache:
                 materials=data.materials, colors=data.colors, tangents=data.tangents,
                 camera_visible=cam,
                 holdout=flags.holdout(inst),
-                casts_shadow=bool(getattr(source, "visible_shadow", True))))
+                casts_shadow=bool(getattr(source, "visible_shadow", True)),
+                shadow_transmission=data.transmission))
         names = [o.name for o in objects]
         self.changed = bool(reads) or names != self.names
         self.names, self.cache = names, used
@@ -694,8 +700,8 @@ class ExtractionCache:
         self.matrices = {o.name: o.matrix_world for o in objects}
         self.index = {name: i for i, name in enumerate(names)}
         self.instancers = instancers
-        # instances that cast no shadow (the same object until the next walk: sync's check)
-        self.no_shadow = frozenset(o.name for o in objects if not o.casts_shadow)
+        # instances whose shadows let light pass (the same dict until the next walk: sync's check)
+        self.shadow_pass = shadow_pass(objects)
         return self.last
 
     def light_rows(self, depsgraph):
@@ -704,6 +710,18 @@ class ExtractionCache:
             from .lights import light_table
             self.lights, self.light_dirty = light_table(depsgraph), False
         return self.lights
+
+
+def shadow_pass(objects) -> dict:
+    """{name: share of light its shadow lets pass} of the ObjectInputs that let some pass: 1 for
+    one that casts no shadow (Ray Visibility > Shadow off), its shadow_transmission for a
+    cut-out (scene_state.SceneState.sync: the object table's texel 9 y)."""
+    out = {}
+    for o in objects:
+        share = 1.0 if not o.casts_shadow else float(o.shadow_transmission)
+        if share > 0.0:
+            out[o.name] = min(share, 1.0)
+    return out
 
 
 def extract_objects(depsgraph, view_layer=None):

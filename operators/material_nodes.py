@@ -562,7 +562,8 @@ class MaterialReader:
     def _cut_out(self, c, alpha) -> bool:
         """Whether `alpha` (what drives an Alpha or a Mix Factor) is the Alpha of the very image
         the closure's base colour reads: a cut-out (leaves, a fence), which the G-buffer
-        discards where that alpha is under 0.5 (c.clip); the SDFs and cards keep the faces."""
+        discards where that alpha is under 0.5 (c.clip); the SDFs and cards keep the faces (the
+        shadow cones let the holes' share through: materials.shadow_transmission)."""
         if alpha is None or c.base_tex is None:
             return False
         node, out = alpha
@@ -573,8 +574,8 @@ class MaterialReader:
             return False
         c.clip = True
         c.warnings.append("is a cut-out (its Base Color image's Alpha): the camera sees through "
-                          "its holes; its shadows are the whole faces' (its bounce light is "
-                          "weighed by the alpha)")
+                          "its holes; its shadows let the holes' share of light through, evenly "
+                          "(the holes' pattern is not cast), and bounce light stops at its faces")
         return True
 
     def _emission(self, c, colour_socket, strength_socket, colour_label, strength_label):

@@ -117,10 +117,17 @@ int sdf_tests = 0;
 int sdf_visits = 0;
 
 /* True while a light's or the sky's visibility cone samples the scene (light_lib.glsl): then
- * an instance that casts no shadow (Object > Visibility > Ray Visibility > Shadow off: texel
- * 9 y = 1, scene_state.py) is not visited, as Cycles' shadow rays pass it. Every other use of
- * the field (GI rays, the global SDF, the camera's traces) still sees it. */
+ * texel 9 y of an instance is the share of light its shadow lets pass (scene_state.py
+ * shadow_pass). 1 (Object > Visibility > Ray Visibility > Shadow off): not seen, as Cycles'
+ * shadow rays pass it. Between 0 and 1 (a cut-out's holes: leaves, a fence): not in the
+ * distance; the nearest such instance is sdf_part_* instead, which the cone lets through by that
+ * share where it crosses it. Every other use of the field (GI rays, the global SDF, the camera's
+ * traces) sees every instance as opaque. */
 bool sdf_shadow_rays = false;
+float sdf_part_d = 1e30;      /* nearest partly occluding instance: its distance, its share, */
+float sdf_part_pass = 0.0;    /* its voxel and index (reset by the caller before each sample) */
+float sdf_part_voxel = 1.0;
+int sdf_part_obj = -1;
 
 /* One instance's part of a scene minimum. Its value is the larger of its sample and a lower
  * bound of its true distance where that bound is positive (outside the mesh bounds; inside them
@@ -155,10 +162,19 @@ void sdf_visit(int i, vec3 pw, inout float best, inout float voxel_world, inout 
   }
   /* the flag read only where the instance would be nearest (a few times a sample; before the
    * field, at every visit, the viewport's direct light took 1.09x) */
-  if (d < best && !(sdf_shadow_rays && sdf_object_texel(i, 9).y > 0.5)) {
-    best = d;
-    voxel_world = t4.w * t7.w;
-    nearest = i;
+  if (d < best) {
+    float pass_share = sdf_shadow_rays ? sdf_object_texel(i, 9).y : 0.0;
+    if (pass_share <= 0.0) {
+      best = d;
+      voxel_world = t4.w * t7.w;
+      nearest = i;
+    }
+    else if (pass_share < 1.0 && d < sdf_part_d) {
+      sdf_part_d = d;
+      sdf_part_pass = pass_share;
+      sdf_part_voxel = t4.w * t7.w;
+      sdf_part_obj = i;
+    }
   }
 }
 
