@@ -69,8 +69,9 @@ class SceneState:
         self.names = None            # instance names of the object table on the GPU
         self.matrices = None         # their matrices
         self.matrices_source = None  # the dict they came from (sync's still-frame check)
-        self.shadow_pass = {}        # {instance name: share of light its shadow lets pass}:
-                                     # the rows' texel 9 y (1: casts no shadow; a cut-out's)
+        self.shadow_pass = {}        # {instance name: (share its shadow lets pass, share its
+                                     # GI rays pass)}: the rows' texel 9 y, z (a cut-out's holes;
+                                     # shadow 1: casts none)
         self.left_out = []           # instances with a singular transform (parked rows)
         self.gone = []               # baked instances the scene no longer has (parked rows)
         self.stale = StaleCheck()    # objects added or edited since the bake (engine.frame)
@@ -136,8 +137,9 @@ class SceneState:
         """Upload what changed; returns the set of re-uploaded resources. The same bake, the
         same `matrices` dict object (ExtractionCache.matrices: no walk since the last sync) and
         equal light rows change nothing: no loop over the instances. `shadow_pass`: {instance
-        name: share of light its shadow lets pass} (1: casts none; a cut-out's holes: less) for
-        the instances that let some pass, their rows' texel 9 y (sdf_lib.glsl sdf_shadow_rays)."""
+        name: (share of light its shadow lets pass, share its GI rays pass)} (shadow 1: casts
+        none; a cut-out's holes: less) for the instances that let some pass, their rows' texel 9
+        y and z (sdf_lib.glsl sdf_shadow_rays, gi_trace_lib.glsl gi_radiance_from)."""
         rows = np.asarray(lights, np.float32).reshape(-1, 16)
         shadow_pass = dict(shadow_pass or {})
         if bake is self.bake and matrices is self.matrices_source and self.lights is not None \
@@ -201,9 +203,10 @@ class SceneState:
                                                   data=float_buffer(rows))
 
     def _shadow_flags(self, rows, names):
-        """Texel 9 y of each row: the share of light its shadow lets pass (shadow_pass)."""
-        rows[:, 9, 1] = [self.shadow_pass.get(n, 0.0) for n in names] if self.shadow_pass \
-            else 0.0
+        """Texel 9 y and z of each row: the shares of light its shadow and its GI rays let pass
+        (shadow_pass)."""
+        rows[:, 9, 1:3] = [self.shadow_pass.get(n, (0.0, 0.0)) for n in names] \
+            if self.shadow_pass else 0.0
 
     def _upload_objects(self, bake, names, keys, mats):
         """Rebuild only the object table texture (and its object grid) from the packed offsets

@@ -557,8 +557,9 @@ class ExtractionCache:
         self.walked = True        # the last update walked the depsgraph
         self.last = None          # the last walk's result
         self.matrices = {}        # {instance name: world 4x4} of the last walk (one dict object)
-        self.shadow_pass = {}     # {instance name: share of light its shadow lets pass} of the
-                                  # last walk's instances that let some pass (1: casts none)
+        self.shadow_pass = {}     # {instance name: (share of light its shadow lets pass, share
+                                  # its GI rays pass)} of the last walk's instances that let
+                                  # some pass (shadow_pass())
         self.lights = None        # light_table rows of the last light walk
         self.light_dirty = True
         self.moved = set()        # objects that only moved since the last update (mark_moved)
@@ -713,14 +714,16 @@ class ExtractionCache:
 
 
 def shadow_pass(objects) -> dict:
-    """{name: share of light its shadow lets pass} of the ObjectInputs that let some pass: 1 for
-    one that casts no shadow (Ray Visibility > Shadow off), its shadow_transmission for a
-    cut-out (scene_state.SceneState.sync: the object table's texel 9 y)."""
+    """{name: (share of light its shadow lets pass, share its GI rays pass)} of the ObjectInputs
+    that let some pass (scene_state.SceneState.sync: the object table's texel 9 y and z). The
+    shadow's: 1 for one that casts no shadow (Ray Visibility > Shadow off), else its
+    shadow_transmission (a cut-out's holes); the GI rays': the holes' alone."""
     out = {}
     for o in objects:
-        share = 1.0 if not o.casts_shadow else float(o.shadow_transmission)
-        if share > 0.0:
-            out[o.name] = min(share, 1.0)
+        holes = min(max(float(o.shadow_transmission), 0.0), 1.0)
+        share = 1.0 if not o.casts_shadow else holes
+        if share > 0.0 or holes > 0.0:
+            out[o.name] = (share, holes)
     return out
 
 

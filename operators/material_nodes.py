@@ -575,7 +575,7 @@ class MaterialReader:
         c.clip = True
         c.warnings.append("is a cut-out (its Base Color image's Alpha): the camera sees through "
                           "its holes; its shadows let the holes' share of light through, evenly "
-                          "(the holes' pattern is not cast), and bounce light stops at its faces")
+                          "(the holes' pattern is not cast), as the sky's and bounce light do")
         return True
 
     def _emission(self, c, colour_socket, strength_socket, colour_label, strength_label):

@@ -46,13 +46,17 @@ vec3 gi_hit_normal(int obj, vec3 q)
 /* obj >= 0: a hit at t on mesh obj; obj = -1: a hit at t served by voxel lighting, whose
  * radiance is voxel_L: a global-SDF hit, or a near hit on an object the bake gave no cards
  * (smaller than Min Card Size: bake.too_small_for_cards; the voxels hold the light around it).
+ * mesh: the hit's mesh either way (-1 on a miss).
  * The ray is traced from t_start (> 0 where something else, the screen trace, has shown
- * [0, t_start] empty): on the mesh SDFs up to GSDF_MESH_SPLIT, then on the global SDF. */
-bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t, out int obj,
-                       out vec3 voxel_L)
+ * [0, t_start] empty): on the mesh SDFs up to GSDF_MESH_SPLIT, then on the global SDF, whose
+ * mesh searches look no farther back than search_from (a ray going on past a cut-out it hit
+ * must not find that cut-out again). */
+bool gi_trace_lit_search(vec3 o, vec3 dir, float t_start, float search_from, float tmax,
+                         out float t, out int obj, out int mesh, out vec3 voxel_L)
 {
   voxel_L = vec3(0.0);
   obj = -1;
+  mesh = -1;
   /* Every hit is a mesh hit (a global-SDF sample near a surface only starts a search on the
    * mesh SDFs), and a mesh hit needs sdf_scene <= GI_HIT_VOXELS h <= M / 8 (M: the object grid's
    * margin, at least 4 voxels of the coarsest object; sdf_scene is at least the distance to
@@ -71,6 +75,7 @@ bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t,
   int vl_level = -1;
   bool hit = false;
   if (t_start < split && gi_trace_mesh(o, dir, t_start, split, t, obj)) {
+    mesh = obj;
     if (sc_instance_range(obj).y > 0) {
       return true;
     }
@@ -91,7 +96,7 @@ bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t,
    * within 1.5 of its voxels, so the search around a point in it covers its whole window; only
    * where a window now starts inside a surface's shell does the hit land a little differently
    * (gi_trace_mesh hits at once there; largest image change 0.02, glow). */
-  float searched = 0.0;
+  float searched = search_from;
   for (int i = 0; i < GI_GLOBAL_STEPS && t < tmax && !hit; i++) {
     int level;
     float v;
@@ -123,11 +128,21 @@ bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t,
   if (!hit) {
     return false;
   }
+  mesh = obj;
   vec3 q = o + t * dir;
   if (vl_level >= 0 && vl_sample(vl_level, q, dir, gi_hit_normal(obj, q), voxel_L)) {
     obj = -1;                     /* served: no surface-cache lookup on the mesh */
   }
   return true;
+}
+
+/* obj >= 0: a hit at t on mesh obj; obj = -1: a hit at t served by voxel lighting, whose
+ * radiance is voxel_L: a global-SDF hit, or a near hit on an object without cards. */
+bool gi_trace_lit_from(vec3 o, vec3 dir, float t_start, float tmax, out float t, out int obj,
+                       out vec3 voxel_L)
+{
+  int mesh;
+  return gi_trace_lit_search(o, dir, t_start, 0.0, tmax, t, obj, mesh, voxel_L);
 }
 
 bool gi_trace_lit(vec3 o, vec3 dir, float tmax, out float t, out int obj, out vec3 voxel_L)
@@ -142,25 +157,68 @@ bool gi_trace(vec3 o, vec3 dir, float tmax, out float t, out int obj)
   return gi_trace_lit(o, dir, tmax, t, obj, voxel_L);
 }
 
+/* Cut-outs a GI ray goes on through: past the last, its light is taken as the rest's */
+#define GI_CUT_LAYERS 4
+
+/* Where the ray o + t dir leaves the hit shell of mesh `mesh` it entered at t (a cut-out's: its
+ * own field, marched until it is clear of the hit rule of sdf_ray_lib.glsl). */
+float gi_cut_exit(int mesh, vec3 o, vec3 dir, float t)
+{
+  float scale = sdf_object_texel(mesh, 7).w;
+  float h = sdf_object_texel(mesh, 4).w * scale;
+  for (int i = 0; i < 16; i++) {
+    float d = sdf_mesh_local(mesh, sdf_world_to_local(mesh, o + t * dir)) * scale;
+    if (d > GI_HIT_VOXELS * h) {
+      break;
+    }
+    t += max(GI_HIT_VOXELS * h - d, 0.25 * h);
+  }
+  return t + 0.05 * h;
+}
+
 /* Radiance arriving at o from direction dir: the surface cache (or the voxel lighting) at the
  * first hit, sky on a miss. hit_t: the hit distance (tmax on a miss); weight: card weight (0 when
- * no card saw the hit; 1 on a voxel-lit hit). */
+ * no card saw the hit; 1 on a voxel-lit hit).
+ * A cut-out's hit (object table texel 9 z: the share of its area that is holes, scene_state.py)
+ * passes that share of the light from beyond it: the ray goes on from where it leaves the
+ * cut-out's shell, up to GI_CUT_LAYERS of them (the sky under a tree's leaves; without, the
+ * leaves' cards stood for all of it, and their albedo is weighed by the alpha). hit_t and weight
+ * are the first hit's. */
 vec3 gi_radiance_from(vec3 o, vec3 dir, float t_start, float tmax, out float hit_t,
                       out float weight)
 {
-  int obj;
-  vec3 voxel_L;
-  if (gi_trace_lit_from(o, dir, t_start, tmax, hit_t, obj, voxel_L)) {
-    if (obj < 0) {
-      weight = 1.0;
-      return voxel_L;
-    }
-    return sc_sample_world(obj, o + hit_t * dir, dir, weight);   /* 0: an object without cards
-                                                                     * no voxel serves */
-  }
+  vec3 L = vec3(0.0);
+  float carry = 1.0;
+  float ts = t_start;
+  float search_from = 0.0;
   hit_t = tmax;
   weight = 1.0;
-  return sky_ray(dir);
+  for (int layer = 0; layer < GI_CUT_LAYERS; layer++) {
+    int obj, mesh;
+    float t, w = 1.0;
+    vec3 voxel_L;
+    if (!gi_trace_lit_search(o, dir, ts, search_from, tmax, t, obj, mesh, voxel_L)) {
+      return L + carry * sky_ray(dir);
+    }
+    /* 0: an object without cards no voxel serves */
+    vec3 Lh = obj < 0 ? voxel_L : sc_sample_world(obj, o + t * dir, dir, w);
+    if (layer == 0) {
+      hit_t = t;
+      weight = w;
+    }
+    float share = sdf_object_texel(mesh, 9).z;
+    if (share <= 0.0 || layer == GI_CUT_LAYERS - 1) {
+      return L + carry * Lh;
+    }
+    L += carry * (1.0 - share) * Lh;
+    carry *= share;
+    ts = gi_cut_exit(mesh, o, dir, t);
+    search_from = ts;
+    if (ts >= tmax) {
+      return L + carry * sky_ray(dir);
+    }
+  }
+  return L;
 }
 
 vec3 gi_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out float weight)

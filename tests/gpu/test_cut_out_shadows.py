@@ -8,6 +8,10 @@ alpha, seen from above.
 - the opaque plane's shadow is as dark as Cycles' (the cut-out's change leaves it alone);
 - the light the cut-out lets through is measured on the mesh: 0.5 of the checker's area
   (lumen_addon.materials.shadow_transmission).
+
+And the GI rays: under a 4 x 4 m roof cut into the same checker, lit by a uniform sky alone
+(no lights), the floor seen through its holes gets the sky's light through the others as
+Cycles' does (gi_trace_lib.glsl gi_radiance_from goes on past a cut-out by its holes' share).
 """
 import sys
 from pathlib import Path
@@ -91,3 +95,57 @@ def test_cut_outs_let_their_holes_share_of_the_sun_through_as_cycles(tmp_path):
     assert abs(share["cut"][1] - 0.5) < 0.12          # the scene is what it says
     assert abs(share["cut"][0] - share["cut"][1]) < 0.1
     assert share["opaque"][0] < 0.15 and share["opaque"][1] < 0.15
+
+
+SKY_SNIPPET = f"""
+scene = empty_scene(voxel_density=8.0, cache_dir="cache")
+bpy.ops.mesh.primitive_plane_add(size=12.0)
+bpy.context.object.data.materials.append(principled("Floor", (0.8, 0.8, 0.8)))
+img = bpy.data.images.new("Cut", 16, 16, alpha=True)
+i = np.arange(16) // 2
+px = np.zeros((16, 16, 4), np.float32)
+px[..., 1] = 0.6
+px[..., 3] = ((i[:, None] + i[None, :]) % 2).astype(np.float32)
+img.pixels.foreach_set(px.ravel())
+img.pack()
+leaf = principled("Leaf", (0.1, 0.6, 0.1))
+nodes, links = leaf.node_tree.nodes, leaf.node_tree.links
+tex = nodes.new("ShaderNodeTexImage")
+tex.image = img
+tex.interpolation = 'Closest'
+links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
+links.new(tex.outputs["Alpha"], nodes["Principled BSDF"].inputs["Alpha"])
+bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 0.0, 1.0))
+bpy.context.object.name = "Roof"
+bpy.context.object.data.materials.append(leaf)
+cam = aimed_camera((0.0, 0.0, 8.0), (0.0, 0.0, 0.0))
+cam.data.type = 'ORTHO'
+cam.data.ortho_scale = 3.0
+w = bpy.data.worlds.new("World")
+scene.world = w
+w.use_nodes = True
+w.node_tree.nodes["Background"].inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+scene.render.resolution_x = scene.render.resolution_y = {SIZE}
+scene.render.resolution_percentage = 100
+scene.render.film_transparent = False
+res, err = bake()
+assert err is None, err
+render_lumen(save=("combined", "position"), quality="MEDIUM")
+render_cycles(128, bounces=4)
+"""
+
+
+def test_gi_rays_let_the_sky_through_a_cut_out_roof_as_cycles(tmp_path):
+    run = run_python(SKY_SNIPPET, tmp_path, timeout=600)
+    assert run.returncode == 0, run.explain()
+    ours = np.load(tmp_path / "combined.npy")[..., :3].mean(-1)
+    ref = np.load(tmp_path / "cycles.npy")[..., :3].mean(-1)
+    pos = np.load(tmp_path / "position.npy")
+    x, y = pos[..., 0], pos[..., 1]
+    # the floor seen through the roof's holes, away from its edges (there the open sky comes in)
+    under = (pos[..., 3] > 0.5) & (np.abs(pos[..., 2]) < 1e-3) & (np.abs(x) < 1.2) \
+        & (np.abs(y) < 1.2)
+    assert under.sum() > 100
+    got, want = float(ours[under].mean()), float(ref[under].mean())
+    print("floor under the roof, ours / cycles:", got, want)
+    assert abs(got / want - 1.0) < 0.15
