@@ -36,7 +36,7 @@ VERTEX_INPUTS = (("pos", 'VEC3'), ("nor", 'VEC3'), ("uv", 'VEC2'), ("albedo", 'V
                  ("emit", 'VEC3'), ("tan", 'VEC4'))
 ATTRIBUTES = tuple(name for name, _ in VERTEX_INPUTS)
 # what a draw group binds (textures, flags) besides its vertex inputs
-MATERIAL_KEYS = ("albedo_tex", "emit_tex", "alpha_clip", "normal_tex", "normal_strength")
+MATERIAL_KEYS = ("albedo_tex", "emit_tex", "alpha_clip", "normal_tex", "normal_strength", "bump")
 _SHADER = {}
 
 
@@ -83,6 +83,12 @@ def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
         info.fragment_source(frag)
         _SHADER[key] = gpu.shader.create_from_info(info)
     return _SHADER[key]
+
+
+def normal_mode(g) -> int:
+    """gbuffer.glsl's use_normal_tex of a draw group: 0 none, 1 a tangent-space normal map, 2 a
+    Bump node's height."""
+    return 0 if g["normal_tex"] is None else (2 if g.get("bump") else 1)
 
 
 def gbuffer_shader():
@@ -193,13 +199,16 @@ def scene_triangles(objects):
                 emi = np.asarray(mt.emission_color, np.float64)[:3] * float(mt.emission_strength)
             clip = bool(getattr(mt, "alpha_clip", False)) and a_tex is not None
             n_tex = getattr(mt, "normal_texture", None)
-            n_tex = n_tex if uvs is not None and tangents is not None else None
+            bump = bool(getattr(mt, "bump", False))      # a height: no tangents needed
+            n_tex = n_tex if uvs is not None and (bump or tangents is not None) else None
             strength = float(getattr(mt, "normal_strength", 1.0))
             key = (id(a_tex) if a_tex is not None else None,
                    id(e_tex) if e_tex is not None else None, clip,
-                   id(n_tex) if n_tex is not None else None, strength if n_tex is not None else 0)
+                   id(n_tex) if n_tex is not None else None, strength if n_tex is not None else 0,
+                   bump)
             g = groups.setdefault(key, dict(albedo_tex=a_tex, emit_tex=e_tex, alpha_clip=clip,
-                                            normal_tex=n_tex, normal_strength=strength, tan=[],
+                                            normal_tex=n_tex, normal_strength=strength,
+                                            bump=bump, tan=[],
                                             pos=[], nor=[],
                                             uv=[], albedo=[], emit=[]))
             corners = (sel[:, None] * 3 + np.arange(3)).ravel()
@@ -287,7 +296,7 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
             shader.uniform_int("emit_base_h", int(e_h))
             shader.uniform_sampler("albedo_tex", a_tex)
             shader.uniform_sampler("emit_tex", e_tex)
-            shader.uniform_int("use_normal_tex", int(g["normal_tex"] is not None))
+            shader.uniform_int("use_normal_tex", normal_mode(g))
             shader.uniform_int("normal_base_h", int(n_h))
             shader.uniform_float("normal_strength", float(g["normal_strength"]))
             shader.uniform_sampler("normal_tex", n_tex)

@@ -23,8 +23,8 @@ import gpu
 import numpy as np
 from gpu_extras.batch import batch_for_shader
 
-from .gbuffer import (ATTACHMENTS, ATTRIBUTES, MATERIAL_KEYS, gbuffer_program, scene_triangles,
-                      upload_texture)
+from .gbuffer import (ATTACHMENTS, ATTRIBUTES, MATERIAL_KEYS, gbuffer_program, normal_mode,
+                      scene_triangles, upload_texture)
 from .resources import glsl, row_texture
 
 TEXELS = 6                      # instance table texels per row
@@ -223,7 +223,7 @@ class MeshBatches:
                 for batch, g in entry.groups:
                     a_arr, e_arr, n_arr = g["albedo_tex"], g["emit_tex"], g["normal_tex"]
                     state = (id(a_arr), id(e_arr), id(n_arr), g["alpha_clip"],
-                             g["normal_strength"])
+                             g["normal_strength"], g["bump"])
                     if state != bound:
                         if dummy is None and any(x is None for x in (a_arr, e_arr, n_arr)):
                             dummy = gpu.types.GPUTexture(
@@ -237,7 +237,7 @@ class MeshBatches:
                         shader.uniform_int("use_emit_tex", int(e_arr is not None))
                         shader.uniform_int("albedo_base_h", int(a_h))
                         shader.uniform_int("emit_base_h", int(e_h))
-                        shader.uniform_int("use_normal_tex", int(n_arr is not None))
+                        shader.uniform_int("use_normal_tex", normal_mode(g))
                         shader.uniform_int("normal_base_h", int(n_h))
                         shader.uniform_float("normal_strength", float(g["normal_strength"]))
                         shader.uniform_sampler("albedo_tex", a_tex)

@@ -43,6 +43,9 @@ class Material:
     # cards keep the geometric normals. Not in the digest: the cards do not depend on it
     normal_texture: Optional[np.ndarray] = None
     normal_strength: float = 1.0
+    # normal_texture is a Bump node's height (H, W) times its Distance (negative: Invert) and
+    # normal_strength its Strength: the G-buffer bumps the normal by the height's derivatives
+    bump: bool = False
 
     def digest(self) -> bytes:
         """Content hash input (textures included), for re-baking only what changed."""

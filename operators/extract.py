@@ -295,7 +295,8 @@ def extract_mesh(obj_eval, ex: Extractor, geometry_cache=None):
             layer = _uv_layer(mesh, uv_names[0], names, warnings)
             if layer is not None:
                 uvs = corner_uvs(mesh, loops, layer)
-                if any(getattr(m, "normal_texture", None) is not None for m in materials):
+                if any(getattr(m, "normal_texture", None) is not None
+                       and not getattr(m, "bump", False) for m in materials):
                     tangents = corner_tangents(mesh, loops, layer, warnings)
                 slot_of = np.clip(ids, 0, max(len(slots) - 1, 0))
                 for i, (a, b) in mappings.items():     # each material's Mapping node

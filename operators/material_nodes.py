@@ -143,6 +143,9 @@ def principled_opacity(node, cut_out: bool = False):
 # rays, never camera rays): the usual "glass that lets shadows through" trick mixes on these
 _LIGHT_RAY = {"Is Shadow Ray": 1.0, "Is Camera Ray": 0.0}
 
+# Rec. 709 luminance: how Blender turns a colour socket into a value (scene-linear Rec. 709)
+LUMINANCE = (0.2126, 0.7152, 0.0722)
+
 
 def uv_mapping(node):
     """((A 2x2, b 2), None) of a Mapping node on UVs as Blender computes it (Point: rotate(v x
@@ -229,6 +232,7 @@ class _Closure:
     clip: bool = False                      # base_tex's alpha cuts the surface out
     normal_tex: object = None               # a tangent-space normal map (linear data)
     normal_strength: float = 1.0
+    bump: bool = False                      # normal_tex is a Bump node's scaled height
 
     def set_base(self, rgb, tex, uv_map, notes, attr, weight: float):
         self.reflect = tuple(weight * float(x) for x in rgb)
@@ -258,6 +262,7 @@ class _Closure:
         mapped = [s for s in sides if s.normal_tex is not None]
         if mapped:
             out.normal_tex, out.normal_strength = mapped[0].normal_tex, mapped[0].normal_strength
+            out.bump = mapped[0].bump
         lit = [(w * s.strength, s) for s, w in zip(sides, weights) if w * s.strength != 0.0]
         emitted = [e for e in lit if e[1].emit_tex is not None]
         if emitted:
@@ -297,7 +302,8 @@ class _Closure:
                             vertex_colors=self.attr is not None,
                             alpha_clip=self.clip and self.base_tex is not None,
                             normal_texture=self.normal_tex,
-                            normal_strength=float(self.normal_strength))
+                            normal_strength=float(self.normal_strength),
+                            bump=bool(self.bump and self.normal_tex is not None))
         return MaterialInfo(material, self.uv_maps, bool(self.uv_maps), self.warnings,
                             attribute=self.attr)
 
@@ -533,12 +539,15 @@ class MaterialReader:
     def _normal_map(self, c, socket):
         """A tangent-space Normal Map node into a shader's Normal, its Color an Image Texture
         linked straight in: the closure's normal_tex and Strength (the G-buffer's shading
-        normal, as Cycles'); other normal inputs (a Bump node, object or world space) are left
-        out with a warning: the geometric normal."""
+        normal, as Cycles'); or a Bump node (_bump); other normal inputs (object or world space)
+        are left out with a warning: the geometric normal."""
         src = _follow(socket)
         if src is None:
             return
         node = src[0]
+        if node.type == 'BUMP':
+            self._bump(c, node)
+            return
         if node.type != 'NORMAL_MAP' or node.space != 'TANGENT':
             what = (f"a {node.bl_label} node" if node.type != 'NORMAL_MAP'
                     else f"a Normal Map in {node.space.lower().replace('_', ' ')} space")
@@ -558,6 +567,35 @@ class MaterialReader:
             return
         c.normal_tex, c.normal_strength = tex, strength
         c.uv_maps.append(node.uv_map or uv_map)
+
+    def _bump(self, c, node):
+        """A Bump node whose Height is an Image Texture linked straight in (its Color as Blender
+        turns a colour into a value, Rec. 709 luminance, or its Alpha): the closure's normal_tex
+        is that height times Distance (negated by Invert) and normal_strength its Strength; the
+        G-buffer perturbs the normal by the height's screen derivatives as Cycles' bump does by
+        its ray differentials (gbuffer.glsl bumped). A normal into the Bump node is left out."""
+        strength, driven = _value(node, "Strength", default=1.0)
+        distance, driven_d = _value(node, "Distance", default=1.0)
+        if driven or driven_d:
+            c.warnings.append(f"the Bump node's Strength or Distance is driven by a node (not "
+                              f"supported); using {strength:g} and {distance:g}")
+        if _follow(node.inputs["Normal"]) is not None:
+            c.warnings.append("a normal into the Bump node is not read; the bump is applied to "
+                              "the geometric normal")
+        tex, uv_map, notes, unsupported = self._linked_texture(node.inputs["Height"],
+                                                               "Bump Height")
+        if unsupported:
+            notes[-1] += "; the geometric normal is used"
+        c.warnings += notes
+        if tex is None or self.dry:
+            return
+        t = np.asarray(tex, np.float32)
+        height = (t[..., :3] @ np.array(LUMINANCE, np.float32) if t.ndim == 3 and t.shape[2] >= 3
+                  else (t[..., 0] if t.ndim == 3 else t))
+        scale = -distance if getattr(node, "invert", False) else distance
+        c.normal_tex = np.ascontiguousarray(height * np.float32(scale))
+        c.normal_strength, c.bump = min(max(strength, 0.0), 1.0), True
+        c.uv_maps.append(uv_map)
 
     def _cut_out(self, c, alpha) -> bool:
         """Whether `alpha` (what drives an Alpha or a Mix Factor) is the Alpha of the very image

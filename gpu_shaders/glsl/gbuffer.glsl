@@ -5,9 +5,9 @@
  * Push constants: view_proj, use_albedo_tex, alpha_clip (a cut-out: discard where the albedo
  * texture's alpha is under 0.5), use_emit_tex, albedo_base_h, emit_base_h (the base
  * level's height), footprint_scale (the share of the pixel's texture footprint one G-buffer
- * filters: 1, or 1 / sqrt(n) for one of n anti-aliasing samples), use_normal_tex,
- * normal_base_h, normal_strength (a tangent-space normal map, as Cycles' Normal Map node: the
- * shading normal), pack_shading (1 when a drawn mesh has a normal map: only then are shading
+ * filters: 1, or 1 / sqrt(n) for one of n anti-aliasing samples), use_normal_tex (1 a
+ * tangent-space normal map, as Cycles' Normal Map node; 2 a Bump node's height: the shading
+ * normal), normal_base_h, normal_strength, pack_shading (1 when a drawn mesh has a normal map or a bump: only then are shading
  * normals packed, and read: gbuffer_shading_lib.glsl). Samplers: albedo_tex, normal_tex,
  * emit_tex (RGBA32F: gbuffer.mip_chain, the levels stacked in rows, row 0 = v 0), read with texelFetch and filtered here: anisotropic trilinear over the mip
  * levels of the pixel's UV footprint, each bilinear with texel centres at (i + 0.5) / size and
@@ -138,6 +138,28 @@ vec3 normal_mapped(vec3 n, vec3 c)
   return N;
 }
 
+/* Cycles' Bump node (surface gradient, Mikkelsen 2010): h the height times Distance at this
+ * pixel, its change to the neighbouring pixels (the screen derivatives, where Cycles takes its
+ * ray differentials) against the position's; Strength s blends from n: normalize(s N + (1 - s)
+ * n). A derivative is constant over a 2x2 pixel quad, as EEVEE's bump. */
+vec3 bumped(vec3 n, float h)
+{
+  vec3 dpdx = dFdx(v_pos);
+  vec3 dpdy = dFdy(v_pos);
+  vec3 rx = cross(dpdy, n);
+  vec3 ry = cross(n, dpdx);
+  float det = dot(dpdx, rx);
+  vec3 grad = dFdx(h) * rx + dFdy(h) * ry;
+  vec3 N = abs(det) * n - (det < 0.0 ? -1.0 : 1.0) * grad;
+  float len = length(N);
+  if (!(len > 0.0)) {
+    return n;
+  }
+  N /= len;
+  float s = clamp(normal_strength, 0.0, 1.0);
+  return normalize(s * N + (1.0 - s) * n);
+}
+
 void main()
 {
   if (v_holdout > 0.5) {
@@ -167,8 +189,11 @@ void main()
   n = len > 0.0 ? n / len : vec3(0.0, 0.0, 1.0);
   vec2 oct = vec2(1.0);
   if (pack_shading != 0) {     /* some drawn mesh has a normal map: every pixel packs its own */
-    vec3 ns = use_normal_tex != 0 ?
-                  normal_mapped(n, sample_mipmapped(normal_tex, v_uv, normal_base_h).rgb) : n;
+    vec3 ns = n;
+    if (use_normal_tex != 0) {
+      vec4 m = sample_mipmapped(normal_tex, v_uv, normal_base_h);
+      ns = use_normal_tex == 2 ? bumped(n, m.r) : normal_mapped(n, m.rgb);
+    }
     oct = gbuf_oct_encode(ns);
   }
   out_normal = vec4(n, 1.0);

@@ -258,26 +258,30 @@ vec3 light_point(int i, vec3 p, int s, int count, vec2 rot)
   return centre + rr * (cos(phi) * bu + sin(phi) * bv);
 }
 
-/* Cycles' bump shadowing term (Chiang et al. 2019, "Taming the Shadow Terminator"), which it
- * applies to a BSDF whose shading normal ns (a normal map's) is not the geometric n: light the
- * geometry would graze fades smoothly instead of lighting the tilted normal fully (a 40 degree
- * map under a 50 degree sun: 0.96). 1 when ns is n. */
+/* Cycles' bump shadowing term (Conty Estevez et al. 2019, "A Microfacet-Based Shadowing Function
+ * to Solve the Bump Terminator Problem"; Blender 4.x and 5.0), which it applies to a diffuse BSDF
+ * whose shading normal ns (a normal map's, a bump's) is not the smooth normal n: the bumps are
+ * taken for GGX microfacets of alpha^2 = tan^2(n, ns) / 8 and the light is shadowed by their
+ * Smith G1 at its angle to n; a direction on the other side of n than ns is black. 1 when ns is
+ * n. Measured against Cycles' Diffuse Direct (tests/gpu/test_normal_maps.py, test_bump.py): a
+ * 30-degree map or bump under a 52-degree sun 0.7% over (Chiang et al.'s term, Cycles' before
+ * 4.0, read 6.7% under), a 40-degree map 1.1% over (1.0% under). */
 float bump_shadowing(vec3 n, vec3 ns, vec3 L)
 {
-  float cos_i = dot(ns, L);
-  float cos_d = dot(ns, n);
-  if (cos_i <= 0.0 || cos_d <= 0.0 || cos_d >= 0.99999) {
-    return 1.0;
-  }
-  float g = dot(n, L) / (cos_i * cos_d);
-  if (g >= 1.0) {
-    return 1.0;
-  }
-  if (g < 0.0) {
+  float cos_d = abs(dot(n, ns));
+  float cos_i = abs(dot(n, L));
+  if (dot(n, L) * dot(n, ns) * dot(ns, L) < 0.0) {
     return 0.0;
   }
-  float g2 = g * g;
-  return -g2 * g + g2 + g;
+  if (cos_d >= 0.99999 || cos_i >= 1.0) {
+    return 1.0;
+  }
+  if (cos_i < 1e-6) {
+    return 0.0;
+  }
+  float alpha2 = clamp(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0, 1.0);
+  float tan2_i = 1.0 / (cos_i * cos_i) - 1.0;
+  return 2.0 / (1.0 + sqrt(1.0 + alpha2 * tan2_i));
 }
 
 /* Samples light i takes (1 for a light without radius). */

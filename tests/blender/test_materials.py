@@ -674,3 +674,68 @@ def test_colour_attributes_into_base_color_are_read_per_corner(blender):
     messages = [what for who, what in r["warnings"]]
     assert any("'Missing'" in w and "black" in w for w in messages), messages
     assert len(messages) == 1, messages
+
+
+BUMPS = """
+empty_scene()
+img, px = checker_png(Path("checker.png").resolve())
+
+def bumped(name, output="Color", invert=False, distance=0.5, source=None, chained=False):
+    m = principled(name)
+    nodes, links = m.node_tree.nodes, m.node_tree.links
+    bsdf = nodes["Principled BSDF"]
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    bump = nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = distance
+    bump.inputs["Strength"].default_value = 0.75
+    bump.invert = invert
+    height = nodes.new(source).outputs[0] if source else tex.outputs[output]
+    links.new(height, bump.inputs["Height"])
+    if chained:
+        nmap = nodes.new("ShaderNodeNormalMap")
+        links.new(nmap.outputs["Normal"], bump.inputs["Normal"])
+    links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    return m
+
+mats = {"Bump": bumped("Bump"), "Inverted": bumped("Inverted", invert=True, distance=2.0),
+        "AlphaBump": bumped("AlphaBump", output="Alpha"),
+        "NoiseBump": bumped("NoiseBump", source="ShaderNodeTexNoise"),
+        "Chained": bumped("Chained", chained=True)}
+for i, (name, mat) in enumerate(mats.items()):
+    ob = cube(name, location=(3.0 * i, 0.0, 0.0))
+    ob.data.materials.append(mat)
+objects, warnings = extract()
+def fields(o):
+    m = o.materials[0]
+    h = m.normal_texture
+    return dict(bump=m.bump, strength=m.normal_strength,
+                height=None if h is None else np.asarray(h).tolist(),
+                base=np.asarray(m.base_color_texture).tolist(),
+                tangents=o.tangents is not None)
+emit(mats={n: fields(objects[n]) for n in mats}, warnings=warnings)
+"""
+
+
+def test_bump_node_heights_are_read_scaled_by_distance(blender):
+    """A Bump node's Height from an Image Texture: its Color's luminance (or its Alpha) times
+    Distance, negated by Invert, with the Strength (gbuffer.glsl bumped); a Bump whose Height
+    is anything else is left out with a warning; no tangents are computed for a bump."""
+    res = blender("from pathlib import Path\n" + EXTRACT + BUMPS)
+    m, warnings = res.result["mats"], res.result["warnings"]
+    base = np.asarray(m["Bump"]["base"], np.float64)
+    lum = base[..., :3] @ np.array([0.2126, 0.7152, 0.0722])
+    assert m["Bump"]["bump"] and m["Bump"]["strength"] == 0.75 and not m["Bump"]["tangents"]
+    np.testing.assert_allclose(m["Bump"]["height"], 0.5 * lum, atol=1e-6)
+    np.testing.assert_allclose(m["Inverted"]["height"], -2.0 * lum, atol=1e-6)
+    assert m["AlphaBump"]["bump"]
+    np.testing.assert_allclose(m["AlphaBump"]["height"], 0.5 * base[..., 3], atol=1e-6)
+    assert not m["NoiseBump"]["bump"] and m["NoiseBump"]["height"] is None
+    assert m["Chained"]["bump"]
+    messages = {}
+    for who, what in warnings:
+        messages.setdefault(who, []).append(what)
+    assert any("Bump Height is driven by a Noise Texture" in w for w in messages["NoiseBump"])
+    assert any("normal into the Bump node" in w for w in messages["Chained"])
+    assert "Bump" not in messages and "Inverted" not in messages
