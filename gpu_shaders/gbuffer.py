@@ -36,7 +36,8 @@ VERTEX_INPUTS = (("pos", 'VEC3'), ("nor", 'VEC3'), ("uv", 'VEC2'), ("albedo", 'V
                  ("emit", 'VEC3'), ("tan", 'VEC4'))
 ATTRIBUTES = tuple(name for name, _ in VERTEX_INPUTS)
 # what a draw group binds (textures, flags) besides its vertex inputs
-MATERIAL_KEYS = ("albedo_tex", "emit_tex", "alpha_clip", "normal_tex", "normal_strength", "bump")
+MATERIAL_KEYS = ("albedo_tex", "emit_tex", "alpha_clip", "normal_tex", "normal_strength", "bump",
+                 "holdout")
 _SHADER = {}
 
 
@@ -68,6 +69,7 @@ def gbuffer_program(key: str, vertex_source: str, instanced: bool = False):
         info.push_constant('INT', "normal_base_h")
         info.push_constant('FLOAT', "normal_strength")
         info.push_constant('INT', "pack_shading")
+        info.push_constant('INT', "group_holdout")
         info.push_constant('FLOAT', "footprint_scale")
         info.sampler(0, 'FLOAT_2D', "albedo_tex")
         info.sampler(1, 'FLOAT_2D', "emit_tex")
@@ -205,10 +207,10 @@ def scene_triangles(objects):
             key = (id(a_tex) if a_tex is not None else None,
                    id(e_tex) if e_tex is not None else None, clip,
                    id(n_tex) if n_tex is not None else None, strength if n_tex is not None else 0,
-                   bump)
+                   bump, bool(getattr(mt, "holdout", False)))
             g = groups.setdefault(key, dict(albedo_tex=a_tex, emit_tex=e_tex, alpha_clip=clip,
                                             normal_tex=n_tex, normal_strength=strength,
-                                            bump=bump, tan=[],
+                                            bump=bump, holdout=key[-1], tan=[],
                                             pos=[], nor=[],
                                             uv=[], albedo=[], emit=[]))
             corners = (sel[:, None] * 3 + np.arange(3)).ravel()
@@ -297,6 +299,7 @@ def render_gbuffer(objects, view_proj, width: int, height: int, texture_cache=No
             shader.uniform_sampler("albedo_tex", a_tex)
             shader.uniform_sampler("emit_tex", e_tex)
             shader.uniform_int("use_normal_tex", normal_mode(g))
+            shader.uniform_int("group_holdout", int(g["holdout"]))
             shader.uniform_int("normal_base_h", int(n_h))
             shader.uniform_float("normal_strength", float(g["normal_strength"]))
             shader.uniform_sampler("normal_tex", n_tex)

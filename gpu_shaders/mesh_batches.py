@@ -223,7 +223,7 @@ class MeshBatches:
                 for batch, g in entry.groups:
                     a_arr, e_arr, n_arr = g["albedo_tex"], g["emit_tex"], g["normal_tex"]
                     state = (id(a_arr), id(e_arr), id(n_arr), g["alpha_clip"],
-                             g["normal_strength"], g["bump"])
+                             g["normal_strength"], g["bump"], g["holdout"])
                     if state != bound:
                         if dummy is None and any(x is None for x in (a_arr, e_arr, n_arr)):
                             dummy = gpu.types.GPUTexture(
@@ -238,6 +238,7 @@ class MeshBatches:
                         shader.uniform_int("albedo_base_h", int(a_h))
                         shader.uniform_int("emit_base_h", int(e_h))
                         shader.uniform_int("use_normal_tex", normal_mode(g))
+                        shader.uniform_int("group_holdout", int(g["holdout"]))
                         shader.uniform_int("normal_base_h", int(n_h))
                         shader.uniform_float("normal_strength", float(g["normal_strength"]))
                         shader.uniform_sampler("albedo_tex", a_tex)

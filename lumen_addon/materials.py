@@ -31,6 +31,10 @@ class Material:
     # operators/extract.py leaves out the faces of a material at or under SEE_THROUGH, so it is
     # not in the digest (the faces kept say it)
     opacity: float = 1.0
+    # a Holdout shader: the camera sees nothing there (rgba 0, as Cycles), while the surface
+    # still blocks and absorbs light (its colours are black). Not in the digest: the cards'
+    # black albedo says it
+    holdout: bool = False
     # the base colour is the mesh's colour attribute (per corner: ObjectInput.colors), as a
     # Color Attribute node into Base Color makes it; base_color is unused then
     vertex_colors: bool = False

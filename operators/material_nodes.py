@@ -233,6 +233,7 @@ class _Closure:
     normal_tex: object = None               # a tangent-space normal map (linear data)
     normal_strength: float = 1.0
     bump: bool = False                      # normal_tex is a Bump node's scaled height
+    holdout: bool = False                   # all of it a Holdout shader (rgba 0 for the camera)
 
     def set_base(self, rgb, tex, uv_map, notes, attr, weight: float):
         self.reflect = tuple(weight * float(x) for x in rgb)
@@ -246,6 +247,11 @@ class _Closure:
         out = _Closure(opacity=float(opacity))
         out.reflect = tuple(float(sum(w * s.reflect[k] for s, w in zip(sides, weights)))
                             for k in range(3))
+        held = [s.holdout for s, w in zip(sides, weights) if w > 0.0]
+        out.holdout = bool(held) and all(held)
+        if any(held) and not out.holdout:
+            out.warnings.append("mixes a Holdout shader with another (a partial holdout: not "
+                                "supported); its share is drawn black")
         for s in sides:
             out.uv_maps += [u for u in s.uv_maps if u not in out.uv_maps]
             out.warnings += s.warnings
@@ -303,7 +309,8 @@ class _Closure:
                             alpha_clip=self.clip and self.base_tex is not None,
                             normal_texture=self.normal_tex,
                             normal_strength=float(self.normal_strength),
-                            bump=bool(self.bump and self.normal_tex is not None))
+                            bump=bool(self.bump and self.normal_tex is not None),
+                            holdout=bool(self.holdout))
         return MaterialInfo(material, self.uv_maps, bool(self.uv_maps), self.warnings,
                             attribute=self.attr)
 
@@ -486,11 +493,7 @@ class MaterialReader:
         if kind in CLEAR_SHADERS:
             return _Closure(reflect=(0.0, 0.0, 0.0), opacity=0.0), None
         if kind == 'HOLDOUT':       # Cycles: no light from it, nothing seen through it
-            c = _Closure(reflect=(0.0, 0.0, 0.0))
-            c.warnings.append("is a Holdout shader: a black surface here (the camera sees it "
-                              "black where Cycles leaves the pixel transparent; Object > "
-                              "Visibility > Holdout is a holdout here too)")
-            return c, None
+            return _Closure(reflect=(0.0, 0.0, 0.0), holdout=True), None
         if kind in ('MIX_SHADER', 'ADD_SHADER') and depth < MAX_SHADER_DEPTH:
             first = 1 if kind == 'MIX_SHADER' else 0
             sides = []

@@ -15,7 +15,8 @@
  * cannot be set from Python in Blender 5.0 (GPUTexture has no filter / extend mode, no mipmaps).
  * Outputs (colour attachments 0..3, RGBA32F):
  *   out_position: world position xyz, w = 1 where a surface was drawn (0: background; 0.25: a
- *                 holdout, v_holdout, whose other attachments are 0: every pass takes w < 0.5
+ *                 holdout, v_holdout or group_holdout (a Holdout shader), whose other
+ *                 attachments are 0: every pass takes w < 0.5
  *                 for background, and the composites write rgba 0 where w > 0.125)
  *   out_normal:   world normal xyz (interpolated, normalised), w = 1
  *   out_normal:   the interpolated (geometric) normal; planes, shells and cones use it
@@ -162,8 +163,9 @@ vec3 bumped(vec3 n, float h)
 
 void main()
 {
-  if (v_holdout > 0.5) {
-    /* a holdout (Cycles, EEVEE): what the camera sees there is nothing, not even the world;
+  if (v_holdout > 0.5 || group_holdout != 0) {
+    /* a holdout (Cycles, EEVEE; the object's flag, or a Holdout shader's material: group_holdout):
+     * what the camera sees there is nothing, not even the world;
      * its depth still hides what lies behind it */
     out_position = vec4(v_pos, 0.25);
     out_normal = vec4(0.0);

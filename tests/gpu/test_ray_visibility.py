@@ -2,7 +2,7 @@
 in the view layer): Cycles and EEVEE render such an object transparent (rgba 0) where it is the nearest surface, hiding what is
 behind it, while it still casts shadows and bounces light. Our F12 against Cycles' on the same
 scene (llvmpipe through bpy): a floor under a sun, a cube held out by its own flag, one by its
-collection, and a plain one.
+collection, one by its material (a Holdout shader: drawn black before), and a plain one.
 
 - where a held-out cube is nearest, our Combined is exactly rgba 0 (Film > Transparent off), and
   that region matches Cycles' transparent one;
@@ -53,6 +53,14 @@ bpy.context.view_layer.layer_collection.children["Indirect"].indirect_only = Tru
 shadowless = cube("Shadowless", 1.0, (0.0, 2.5, 0.5))
 shadowless.data.materials.append(principled("Shadowless", (0.8, 0.8, 0.1)))
 shadowless.visible_shadow = False
+shader = cube("HoldoutShader", 1.0, (-2.2, -2.0, 0.5))
+held_mat = bpy.data.materials.new("HoldoutShader")
+held_mat.use_nodes = True
+nodes = held_mat.node_tree.nodes
+nodes.remove(nodes["Principled BSDF"])
+held_mat.node_tree.links.new(nodes.new("ShaderNodeHoldout").outputs[0],
+                             nodes["Material Output"].inputs["Surface"])
+shader.data.materials.append(held_mat)
 plain = cube("Plain", 1.0, (-2.0, 0.5, 0.5))
 plain.data.materials.append(principled("Plain", (0.1, 0.1, 0.8)))
 sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
@@ -123,6 +131,7 @@ def test_holdout_indirect_only_and_shadow_visibility_as_cycles(tmp_path):
     # each cube's top centre: the held-out ones rgba 0, the plain one drawn
     for name, top, transparent in (("Own", (0.0, 0.0, 1.0), True),
                                    ("ByCollection", (2.0, 0.5, 1.0), True),
+                                   ("HoldoutShader", (-2.2, -2.0, 1.0), True),
                                    ("Plain", (-2.0, 0.5, 1.0), False)):
         r, c = _pixel(vp, top)
         print(name, "ours", ours[r, c], "cycles", ref[r, c])
