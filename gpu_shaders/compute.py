@@ -136,6 +136,16 @@ def _providers():
              voxel_lighting.bind_tiles))
 
 
+# Compile-time variants: a pass that includes `library` and is run with an input `keyword` whose
+# `attribute` is true is compiled (and cached) apart with `#define DEFINE 1`, so that code only
+# some scenes need costs nothing in the others: the cut-outs' bookkeeping in the shadow cones
+# (light_lib.glsl: the direct pass took 1.055x in a scene without a cut-out on llvmpipe when it
+# was always compiled in, bench/glsl_ab.py) and in the GI rays (gi_trace_lib.glsl: the probe
+# traces 1.02-1.03x).
+VARIANTS = (("light_lib.glsl", "scene", "cut_outs", "LIGHT_CUT_OUTS"),
+            ("gi_trace_lib.glsl", "scene", "cut_outs", "GI_CUT_OUTS"))
+
+
 class Pass:
     """One compute pass, declared once and bound from that declaration.
 
@@ -159,14 +169,37 @@ class Pass:
         self.block = push_bytes(self.push) > PUSH_LIMIT
         self._ubo = None
         self._files = None
-        self._unused = None          # push constants the compiler dropped
+        self._unused = {}            # shader key -> push constants the compiler dropped
 
     @property
     def shader(self):
-        """The compiled shader (built on first use, cached in _SHADERS by name)."""
-        if self.name not in _SHADERS:
-            _SHADERS[self.name] = self._build()
-        return _SHADERS[self.name]
+        """The compiled shader without variants (built on first use, cached in _SHADERS by
+        name)."""
+        return self.shader_of(())
+
+    def shader_of(self, defines=()):
+        """The shader compiled with `defines` (VARIANTS), cached by name + defines."""
+        key = "+".join((self.name,) + tuple(defines))
+        if key not in _SHADERS:
+            _SHADERS[key] = self._build(tuple(defines))
+        return _SHADERS[key]
+
+    def variant_sets(self) -> list:
+        """Every set of defines the pass compiles with (none; each VARIANTS attribute's, all of
+        one attribute's together as one input sets them), for the tests that compile them all."""
+        files = self.files()
+        out, by_attr = [()], {}
+        for lib, key, attr, define in VARIANTS:
+            if lib in files:
+                by_attr.setdefault((key, attr), []).append(define)
+        out += [tuple(d) for d in by_attr.values()]
+        return out
+
+    def defines(self, inputs) -> tuple:
+        """The VARIANTS these inputs ask for (empty for a pass that includes none)."""
+        files = self.files()
+        return tuple(define for lib, key, attr, define in VARIANTS
+                     if lib in files and bool(getattr(inputs.get(key), attr, False)))
 
     def files(self) -> list:
         """The GLSL files of the pass (glsl_include.files), its own last."""
@@ -181,7 +214,7 @@ class Pass:
         files = self.files()
         return [(key, declare, bind) for lib, key, declare, bind in _providers() if lib in files]
 
-    def _build(self):
+    def _build(self, defines=()):
         info = new_info(self.group)
         files = self.files()
         if self.text is not None:   # a test's GLSL: its #include lines name files in glsl/
@@ -200,7 +233,7 @@ class Pass:
             fmt = im[1] if len(im) > 1 else 'RGBA32F'
             info.image(k, fmt, 'INT_2D' if fmt.endswith('I') else 'FLOAT_2D', im[0],
                        qualifiers=set(im[2] if len(im) > 2 else {'WRITE'}))
-        prefix = ""
+        prefix = "".join(f"#define {d} 1\n" for d in defines)
         if self.block:
             from .global_sdf import PARAMS_TYPEDEF
             members = "".join(f"  {_slot_type(kind)} p_{n};\n" for kind, n in self.push)
@@ -208,8 +241,8 @@ class Pass:
             info.typedef_source((PARAMS_TYPEDEF if "global_sdf_lib.glsl" in files else "")
                                 + f"struct PassParams {{\n{members}}};\n")
             info.uniform_buf(BLOCK_SLOT, "PassParams", "pass_params")
-            prefix = "".join(f"#define {n} pass_params.p_{n}{_swizzle(kind)}\n"
-                             for kind, n in self.push)
+            prefix += "".join(f"#define {n} pass_params.p_{n}{_swizzle(kind)}\n"
+                              for kind, n in self.push)
         else:
             for kind, n in self.push:
                 info.push_constant(kind, n)
@@ -221,8 +254,10 @@ class Pass:
                 | {n for _, n in self.push} | {key for key, _, _ in self.providers()})
 
     def bind(self, **inputs) -> list:
-        """Bind every declared input; returns what must be held until the dispatch."""
-        sh = self.shader
+        """Bind every declared input to the shader they ask for (shader_of(defines(inputs)));
+        returns what must be held until the dispatch."""
+        defines = self.defines(inputs)
+        sh = self.shader_of(defines)
         expected = self.inputs()
         for k in sorted(expected - set(inputs)):
             raise ValueError(f"pass {self.name}: missing input {k!r}")
@@ -236,10 +271,12 @@ class Pass:
         if self.block:
             held.append(self._bind_block(sh, inputs))
         else:
-            if self._unused is None:
-                self._unused = {n for _, n in self.push if _compiled_out(sh, n)}
+            key = defines
+            if key not in self._unused:
+                self._unused[key] = {n for _, n in self.push if _compiled_out(sh, n)}
+            unused = self._unused[key]
             for kind, n in self.push:
-                if n in self._unused:
+                if n in unused:
                     if not kind.startswith('MAT'):
                         _values(kind, n, inputs[n], self.name)     # still checked
                 else:
@@ -276,7 +313,7 @@ class Pass:
         """Bind `inputs` and dispatch `groups` work groups ((x, y[, z]) or x)."""
         held = self.bind(**inputs)  # noqa: F841 (held until the dispatch)
         g = (groups,) if np.isscalar(groups) else tuple(groups)
-        run(self.shader, *g)
+        run(self.shader_of(self.defines(inputs)), *g)
 
 
 def _slots(kind):

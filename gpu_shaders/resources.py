@@ -124,6 +124,9 @@ class SceneResources:
         # only the cells near what changed are measured again (the same texels as a full build)
         previous = getattr(self, "grid_info", {}).get("lists")
         texels, self.grid_info = build_object_grid(rows, previous=previous, boxes=boxes)
+        # an instance is a cut-out (texel 9 z, its holes' share, over 0): the passes that trace
+        # shadows or GI rays compile its bookkeeping in (compute.VARIANTS)
+        self.cut_outs = bool((rows[:, 9, 2] > 0.0).any())
         self._log_region(self.grid_info["region"])
         self.grid_shape = texels.shape
         self.grid = gpu.types.GPUTexture((texels.shape[1], texels.shape[0]), format='RGBA32F',

@@ -121,7 +121,8 @@ def compile_every_pass(addon) -> tuple:
         def render(self, depsgraph):
             for p in compute.declared_passes():
                 try:
-                    p.shader
+                    for defines in p.variant_sets():
+                        p.shader_of(defines)
                     done.append(p.name)
                 except Exception as exc:   # noqa: BLE001 (reported by name)
                     failed[p.name] = str(exc)[:200]

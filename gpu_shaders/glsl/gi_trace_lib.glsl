@@ -179,14 +179,16 @@ float gi_cut_exit(int mesh, vec3 o, vec3 dir, float t)
 /* Radiance arriving at o from direction dir: the surface cache (or the voxel lighting) at the
  * first hit, sky on a miss. hit_t: the hit distance (tmax on a miss); weight: card weight (0 when
  * no card saw the hit; 1 on a voxel-lit hit).
- * A cut-out's hit (object table texel 9 z: the share of its area that is holes, scene_state.py)
- * passes that share of the light from beyond it: the ray goes on from where it leaves the
+ * With GI_CUT_OUTS (compute.VARIANTS: a scene that has a cut-out), a cut-out's hit (object
+ * table texel 9 z: the share of its area that is holes, scene_state.py) passes that share of the
+ * light from beyond it: the ray goes on from where it leaves the
  * cut-out's shell, up to GI_CUT_LAYERS of them (the sky under a tree's leaves; without, the
  * leaves' cards stood for all of it, and their albedo is weighed by the alpha). hit_t and weight
  * are the first hit's. */
 vec3 gi_radiance_from(vec3 o, vec3 dir, float t_start, float tmax, out float hit_t,
                       out float weight)
 {
+#ifdef GI_CUT_OUTS
   vec3 L = vec3(0.0);
   float carry = 1.0;
   float ts = t_start;
@@ -222,6 +224,21 @@ vec3 gi_radiance_from(vec3 o, vec3 dir, float t_start, float tmax, out float hit
     }
   }
   return L;
+#else
+  int obj, mesh;
+  vec3 voxel_L;
+  if (gi_trace_lit_search(o, dir, t_start, 0.0, tmax, hit_t, obj, mesh, voxel_L)) {
+    if (obj < 0) {
+      weight = 1.0;
+      return voxel_L;
+    }
+    return sc_sample_world(obj, o + hit_t * dir, dir, weight);   /* 0: an object without cards
+                                                                     * no voxel serves */
+  }
+  hit_t = tmax;
+  weight = 1.0;
+  return sky_ray(dir);
+#endif
 }
 
 vec3 gi_radiance(vec3 o, vec3 dir, float tmax, out float hit_t, out float weight)

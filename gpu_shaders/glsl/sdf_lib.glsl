@@ -118,16 +118,17 @@ int sdf_visits = 0;
 
 /* True while a light's or the sky's visibility cone samples the scene (light_lib.glsl): then
  * texel 9 y of an instance is the share of light its shadow lets pass (scene_state.py
- * shadow_pass). 1 (Object > Visibility > Ray Visibility > Shadow off): not seen, as Cycles'
- * shadow rays pass it. Between 0 and 1 (a cut-out's holes: leaves, a fence): not in the
- * distance; the nearest such instance is sdf_part_* instead, which the cone lets through by that
- * share where it crosses it. Every other use of the field (GI rays, the global SDF, the camera's
- * traces) sees every instance as opaque. */
+ * shadow_pass), and an instance that lets some pass is not in the distance: 1 (Object >
+ * Visibility > Ray Visibility > Shadow off) as Cycles' shadow rays pass it; between 0 and 1 a
+ * cut-out's holes (leaves, a fence): with LIGHT_CUT_OUTS (compute.VARIANTS: a scene that has
+ * one) the nearest such instance is sdf_part_d, sdf_part_obj instead (the caller resets them),
+ * which the cone lets through by that share where it crosses its shell. Every other use of the
+ * field (GI rays, the global SDF, the camera's traces) sees every instance. */
 bool sdf_shadow_rays = false;
-float sdf_part_d = 1e30;      /* nearest partly occluding instance: its distance, its share, */
-float sdf_part_pass = 0.0;    /* its voxel and index (reset by the caller before each sample) */
-float sdf_part_voxel = 1.0;
+#ifdef LIGHT_CUT_OUTS
+float sdf_part_d = 1e30;
 int sdf_part_obj = -1;
+#endif
 
 /* One instance's part of a scene minimum. Its value is the larger of its sample and a lower
  * bound of its true distance where that bound is positive (outside the mesh bounds; inside them
@@ -162,20 +163,26 @@ void sdf_visit(int i, vec3 pw, inout float best, inout float voxel_world, inout 
   }
   /* the flag read only where the instance would be nearest (a few times a sample; before the
    * field, at every visit, the viewport's direct light took 1.09x) */
+#ifdef LIGHT_CUT_OUTS
   if (d < best) {
-    float pass_share = sdf_shadow_rays ? sdf_object_texel(i, 9).y : 0.0;
-    if (pass_share <= 0.0) {
+    float share = sdf_shadow_rays ? sdf_object_texel(i, 9).y : 0.0;
+    if (share <= 0.0) {
       best = d;
       voxel_world = t4.w * t7.w;
       nearest = i;
     }
-    else if (pass_share < 1.0 && d < sdf_part_d) {
+    else if (share < 1.0 && d < sdf_part_d) {
       sdf_part_d = d;
-      sdf_part_pass = pass_share;
-      sdf_part_voxel = t4.w * t7.w;
       sdf_part_obj = i;
     }
   }
+#else
+  if (d < best && !(sdf_shadow_rays && sdf_object_texel(i, 9).y > 0.0)) {
+    best = d;
+    voxel_world = t4.w * t7.w;
+    nearest = i;
+  }
+#endif
 }
 
 /* Scene distance over every object: the minimum of their values. voxel_world: voxel of the

@@ -75,8 +75,10 @@ def job():
     # every Pass the engine's modules declare compiles, within 128 B or through a block
     passes = {}
     for p in compute.declared_passes():
-        p.shader
-        passes[p.name] = dict(bytes=compute.push_bytes(p.push), block=p.block)
+        for defines in p.variant_sets():       # compute.VARIANTS: with cut-outs and without
+            p.shader_of(defines)
+        passes[p.name] = dict(bytes=compute.push_bytes(p.push), block=p.block,
+                              variants=len(p.variant_sets()))
     OUT["passes"] = passes
 
 run_in_gpu_context(job)
@@ -107,3 +109,6 @@ def test_pass_binds_from_its_declaration(tmp_path):
     assert out["passes"], "no compute.Pass found in the engine's modules"
     for name, p in out["passes"].items():
         assert p["bytes"] <= 128 or p["block"], name
+    # the passes that trace shadows or GI rays compile a cut-out variant too (compute.VARIANTS)
+    for name in ("direct_light", "surface_cache_direct", "screen_probe_trace"):
+        assert out["passes"][name]["variants"] == 2, (name, out["passes"][name])
