@@ -486,6 +486,75 @@ def imported_material_features(bpy):
 
 
 @case
+def foliage_bumps_and_holdouts(bpy):
+    """A scatter of cut-out leaves (one casting no shadow, one without UVs, one all holes), a
+    Bump node on an image and on a noise texture (not read: a warning), a Holdout shader."""
+    import numpy as np
+    scene = base(bpy)
+    img = bpy.data.images.new("Leaves", 16, 16, alpha=True)
+    px = np.random.default_rng(2).random((16, 16, 4)).astype(np.float32)
+    img.pixels.foreach_set(px.ravel())
+    empty = bpy.data.images.new("AllHoles", 4, 4, alpha=True)
+    empty.pixels.foreach_set(np.zeros(64, np.float32))
+
+    def material(name, image=None, cut=False, bump=None, holdout=False):
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        nodes, links = mat.node_tree.nodes, mat.node_tree.links
+        bsdf = nodes["Principled BSDF"]
+        if holdout:
+            links.new(nodes.new("ShaderNodeHoldout").outputs[0],
+                      nodes["Material Output"].inputs["Surface"])
+            return mat
+        tex = nodes.new("ShaderNodeTexImage")
+        tex.image = image or img
+        links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+        if cut:
+            links.new(tex.outputs["Alpha"], bsdf.inputs["Alpha"])
+        if bump is not None:
+            b = nodes.new("ShaderNodeBump")
+            height = tex.outputs["Color"] if bump == "image" else \
+                nodes.new("ShaderNodeTexNoise").outputs[0]
+            links.new(height, b.inputs["Height"])
+            links.new(b.outputs["Normal"], bsdf.inputs["Normal"])
+        return mat
+
+    leaf = material("Leaf", cut=True)
+    leaves = bpy.data.collections.new("Leaves")
+    scene.collection.children.link(leaves)
+    bpy.ops.mesh.primitive_plane_add(size=0.4)
+    card = bpy.context.object
+    card.data.materials.append(leaf)
+    for c in list(card.users_collection):
+        c.objects.unlink(card)
+    leaves.objects.link(card)
+    bpy.context.view_layer.layer_collection.children["Leaves"].exclude = True
+    rng = np.random.default_rng(3)
+    for i in range(24):
+        inst = bpy.data.objects.new(f"Tree.{i}", None)
+        inst.instance_type = 'COLLECTION'
+        inst.instance_collection = leaves
+        inst.location = (*(rng.random(2) * 2.0 - 1.0), 1.0 + rng.random())
+        inst.rotation_euler = tuple(rng.random(3) * 3.0)
+        scene.collection.objects.link(inst)
+    bpy.ops.mesh.primitive_plane_add(size=0.6, location=(1.6, 0.0, 1.2))
+    bpy.context.object.data.materials.append(material("Shadowless", cut=True))
+    bpy.context.object.visible_shadow = False
+    bpy.ops.mesh.primitive_plane_add(size=0.6, location=(-1.6, 0.0, 1.2))
+    plane = bpy.context.object
+    plane.data.uv_layers.remove(plane.data.uv_layers[0])
+    plane.data.materials.append(material("NoUVs", cut=True))
+    bpy.ops.mesh.primitive_plane_add(size=0.6, location=(0.0, 1.6, 1.2))
+    bpy.context.object.data.materials.append(material("Ghostly", image=empty, cut=True))
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(1.0, -1.2, 0.4))
+    bpy.context.object.data.materials.append(material("Bumped", bump="image"))
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(-1.0, -1.2, 0.25))
+    bpy.context.object.data.materials.append(material("Noisy", bump="noise"))
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(0.0, -1.6, 0.25))
+    bpy.context.object.data.materials.append(material("HeldOut", holdout=True))
+
+
+@case
 def factory_startup(bpy):
     # Blender's own start-up scene: the cube, its 1000 W point light, the camera; no floor
     bpy.ops.wm.read_factory_settings(use_empty=False)
