@@ -124,7 +124,8 @@ class SceneState:
             changes |= {"atlas", "indirection", "objects"}
         elif names != self.names or mats.shape != self.matrices.shape \
                 or not np.array_equal(mats, self.matrices) \
-                or (shadow_pass is not None and shadow_pass != self.shadow_pass):
+                or (shadow_pass is not None and shadow_pass is not self.shadow_pass
+                    and shadow_pass != self.shadow_pass):
             changes.add("objects")
         if self.lights is None or rows.shape != self.lights.shape \
                 or not np.array_equal(rows, self.lights):
@@ -141,10 +142,12 @@ class SceneState:
         none; a cut-out's holes: less) for the instances that let some pass, their rows' texel 9
         y and z (sdf_lib.glsl sdf_shadow_rays, gi_trace_lib.glsl gi_radiance_from)."""
         rows = np.asarray(lights, np.float32).reshape(-1, 16)
-        shadow_pass = dict(shadow_pass or {})
+        # the caller's dict, not a copy (ExtractionCache makes a new one per walk and never
+        # edits it): a still frame compares it by identity, not entry by entry
+        shadow_pass = shadow_pass if shadow_pass is not None else {}
         if bake is self.bake and matrices is self.matrices_source and self.lights is not None \
                 and rows.shape == self.lights.shape and np.array_equal(rows, self.lights) \
-                and shadow_pass == self.shadow_pass:
+                and (shadow_pass is self.shadow_pass or shadow_pass == self.shadow_pass):
             self.syncs += 1
             self.last_changes = set()
             return set()
