@@ -149,3 +149,79 @@ def test_gi_rays_let_the_sky_through_a_cut_out_roof_as_cycles(tmp_path):
     got, want = float(ours[under].mean()), float(ref[under].mean())
     print("floor under the roof, ours / cycles:", got, want)
     assert abs(got / want - 1.0) < 0.15
+
+
+VIEW_SNIPPET = f"""
+from lumen_gi.gpu_shaders import engine, direct_light
+import viewport_harness
+
+scene = empty_scene(voxel_density=8.0, cache_dir="cache")
+bpy.ops.mesh.primitive_plane_add(size=12.0)
+bpy.context.object.data.materials.append(principled("Floor", (0.8, 0.8, 0.8)))
+img = bpy.data.images.new("Cut", 8, 8, alpha=True)
+i = np.arange(8) // 2
+px = np.zeros((8, 8, 4), np.float32)
+px[..., 1] = 0.6
+px[..., 3] = ((i[:, None] + i[None, :]) % 2).astype(np.float32)
+img.pixels.foreach_set(px.ravel())
+img.pack()
+leaf = principled("Leaf", (0.1, 0.6, 0.1))
+nodes, links = leaf.node_tree.nodes, leaf.node_tree.links
+tex = nodes.new("ShaderNodeTexImage")
+tex.image = img
+tex.interpolation = 'Closest'
+links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
+bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.0, 0.0, 1.5))
+bpy.context.object.data.materials.append(leaf)
+sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
+sun.data.energy = 3.0
+sun.rotation_euler = (np.radians(45.0), 0.0, 0.0)
+cam = aimed_camera((0.0, 0.75, 8.0), (0.0, 0.75, 0.0))
+cam.data.type = 'ORTHO'
+cam.data.ortho_scale = 4.0
+scene.world = bpy.data.worlds.new("World")
+scene.world.color = (0.05, 0.05, 0.05)
+scene.render.engine = "LUMEN_GI"
+scene.lumen.engine.viewport_quality = "LOW"
+scene.render.resolution_x = scene.render.resolution_y = {SIZE}
+scene.render.resolution_percentage = 100
+res, err = bake()
+assert err is None, err
+settle = direct_light.Progressive.FRAMES + 2
+shots = {{}}
+
+def step(i):
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    if i == settle - 1:
+        shots["opaque"] = (R["combined"].copy(), R["position"].copy())
+        links.new(tex.outputs["Alpha"], nodes["Principled BSDF"].inputs["Alpha"])   # cut it
+    if i == 2 * settle - 1:
+        shots["cut"] = (R["combined"].copy(), R["position"].copy())
+
+viewport_harness.run(scene, engine.LumenGIRenderEngine, {SIZE}, {SIZE}, 2 * settle, step)
+for name, (img, pos) in shots.items():
+    np.save(name + ".npy", img)
+    np.save(name + "_pos.npy", pos)
+"""
+
+
+def test_viewport_sees_a_material_become_a_cut_out(tmp_path):
+    """The viewport, one engine instance: linking the leaf's image Alpha into its Alpha (an edit,
+    no re-bake) lets half the sun through onto the floor under it within the progressive
+    direct light's frames (shadow_pass reaches the object table, the cut-out variant compiles)."""
+    run = run_python(VIEW_SNIPPET, tmp_path, timeout=600)
+    assert run.returncode == 0, run.explain()
+    share = {}
+    for name in ("opaque", "cut"):
+        img = np.load(tmp_path / f"{name}.npy")[..., :3].mean(-1)
+        pos = np.load(tmp_path / f"{name}_pos.npy")
+        x, y = pos[..., 0], pos[..., 1]
+        floor = (pos[..., 3] > 0.5) & (np.abs(pos[..., 2]) < 1e-3)
+        under = floor & (y > 1.1) & (y < 1.9) & (np.abs(x) < 0.4)
+        lit = floor & (y > -1.2) & (y < -0.6)
+        assert under.sum() > 20 and lit.sum() > 20
+        share[name] = float(img[under].mean() / img[lit].mean())
+    print("floor under the leaf over the open floor, viewport:", share)
+    assert share["opaque"] < 0.15
+    assert 0.4 < share["cut"] < 0.65
