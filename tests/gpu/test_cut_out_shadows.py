@@ -25,24 +25,33 @@ from blender_runner import run_python  # noqa: E402
 
 SIZE = 64
 
-SNIPPET = f"""
+# a checker of holes (2x2 texels each) in a green leaf's Base Color image, its Alpha into the
+# Principled BSDF's Alpha when `cut` (the cut-out)
+CHECKER_LEAF = """
+def checker_leaf(texels, cut=True):
+    img = bpy.data.images.new("Cut", texels, texels, alpha=True)
+    i = np.arange(texels) // 2
+    px = np.zeros((texels, texels, 4), np.float32)
+    px[..., 1] = 0.6
+    px[..., 3] = ((i[:, None] + i[None, :]) % 2).astype(np.float32)
+    img.pixels.foreach_set(px.ravel())
+    img.pack()
+    leaf = principled("Leaf", (0.1, 0.6, 0.1))
+    nodes, links = leaf.node_tree.nodes, leaf.node_tree.links
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tex.interpolation = 'Closest'
+    links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
+    if cut:
+        links.new(tex.outputs["Alpha"], nodes["Principled BSDF"].inputs["Alpha"])
+    return leaf, tex
+"""
+
+SNIPPET = CHECKER_LEAF + f"""
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=12.0)
 bpy.context.object.data.materials.append(principled("Floor", (0.8, 0.8, 0.8)))
-img = bpy.data.images.new("Cut", 8, 8, alpha=True)
-i = np.arange(8) // 2
-px = np.zeros((8, 8, 4), np.float32)
-px[..., 1] = 0.6
-px[..., 3] = ((i[:, None] + i[None, :]) % 2).astype(np.float32)
-img.pixels.foreach_set(px.ravel())
-img.pack()
-leaf = principled("Leaf", (0.1, 0.6, 0.1))
-nodes, links = leaf.node_tree.nodes, leaf.node_tree.links
-tex = nodes.new("ShaderNodeTexImage")
-tex.image = img
-tex.interpolation = 'Closest'
-links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
-links.new(tex.outputs["Alpha"], nodes["Principled BSDF"].inputs["Alpha"])
+leaf, tex = checker_leaf(8)
 bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-0.8, 0.0, 1.5))
 bpy.context.object.name = "CutOut"
 bpy.context.object.data.materials.append(leaf)
@@ -97,24 +106,11 @@ def test_cut_outs_let_their_holes_share_of_the_sun_through_as_cycles(tmp_path):
     assert share["opaque"][0] < 0.15 and share["opaque"][1] < 0.15
 
 
-SKY_SNIPPET = f"""
+SKY_SNIPPET = CHECKER_LEAF + f"""
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=12.0)
 bpy.context.object.data.materials.append(principled("Floor", (0.8, 0.8, 0.8)))
-img = bpy.data.images.new("Cut", 16, 16, alpha=True)
-i = np.arange(16) // 2
-px = np.zeros((16, 16, 4), np.float32)
-px[..., 1] = 0.6
-px[..., 3] = ((i[:, None] + i[None, :]) % 2).astype(np.float32)
-img.pixels.foreach_set(px.ravel())
-img.pack()
-leaf = principled("Leaf", (0.1, 0.6, 0.1))
-nodes, links = leaf.node_tree.nodes, leaf.node_tree.links
-tex = nodes.new("ShaderNodeTexImage")
-tex.image = img
-tex.interpolation = 'Closest'
-links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
-links.new(tex.outputs["Alpha"], nodes["Principled BSDF"].inputs["Alpha"])
+leaf, tex = checker_leaf(16)
 bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0.0, 0.0, 1.0))
 bpy.context.object.name = "Roof"
 bpy.context.object.data.materials.append(leaf)
@@ -151,26 +147,15 @@ def test_gi_rays_let_the_sky_through_a_cut_out_roof_as_cycles(tmp_path):
     assert abs(got / want - 1.0) < 0.15
 
 
-VIEW_SNIPPET = f"""
+VIEW_SNIPPET = CHECKER_LEAF + f"""
 from lumen_gi.gpu_shaders import engine, direct_light
 import viewport_harness
 
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=12.0)
 bpy.context.object.data.materials.append(principled("Floor", (0.8, 0.8, 0.8)))
-img = bpy.data.images.new("Cut", 8, 8, alpha=True)
-i = np.arange(8) // 2
-px = np.zeros((8, 8, 4), np.float32)
-px[..., 1] = 0.6
-px[..., 3] = ((i[:, None] + i[None, :]) % 2).astype(np.float32)
-img.pixels.foreach_set(px.ravel())
-img.pack()
-leaf = principled("Leaf", (0.1, 0.6, 0.1))
+leaf, tex = checker_leaf(8, cut=False)
 nodes, links = leaf.node_tree.nodes, leaf.node_tree.links
-tex = nodes.new("ShaderNodeTexImage")
-tex.image = img
-tex.interpolation = 'Closest'
-links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Base Color"])
 bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.0, 0.0, 1.5))
 bpy.context.object.data.materials.append(leaf)
 sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
