@@ -72,6 +72,7 @@ class SceneState:
         self.shadow_pass = {}        # {instance name: (share its shadow lets pass, share its
                                      # GI rays pass)}: the rows' texel 9 y, z (a cut-out's holes;
                                      # shadow 1: casts none)
+        self._pass_arrays = None     # (shadow_pass, its names sorted, their shares) for rows
         self.left_out = []           # instances with a singular transform (parked rows)
         self.gone = []               # baked instances the scene no longer has (parked rows)
         self.stale = StaleCheck()    # objects added or edited since the bake (engine.frame)
@@ -207,9 +208,20 @@ class SceneState:
 
     def _shadow_flags(self, rows, names):
         """Texel 9 y and z of each row: the shares of light its shadow and its GI rays let pass
-        (shadow_pass)."""
-        rows[:, 9, 1:3] = [self.shadow_pass.get(n, (0.0, 0.0)) for n in names] \
-            if self.shadow_pass else 0.0
+        (shadow_pass), matched by name in numpy (a drag re-uploads the rows every frame)."""
+        rows[:, 9, 1:3] = 0.0
+        if not self.shadow_pass or not len(names):
+            return
+        if self._pass_arrays is None or self._pass_arrays[0] is not self.shadow_pass:
+            keys = np.array(list(self.shadow_pass.keys()))
+            order = np.argsort(keys)
+            values = np.array(list(self.shadow_pass.values()), np.float32).reshape(-1, 2)
+            self._pass_arrays = (self.shadow_pass, keys[order], values[order])
+        _, keys, values = self._pass_arrays
+        names = np.asarray(names)
+        at = np.minimum(np.searchsorted(keys, names), len(keys) - 1)
+        hit = keys[at] == names
+        rows[hit, 9, 1:3] = values[at[hit]]
 
     def _upload_objects(self, bake, names, keys, mats):
         """Rebuild only the object table texture (and its object grid) from the packed offsets
