@@ -8,7 +8,8 @@ light texture read by glsl/direct_light.comp.glsl):
              angular diameter in radians (sun)
     texel 2: colour x power in radiometric units (below) rgb, 1 if the light casts no shadow
              (Cast Shadow off, `use_shadow`: a fill light) else 0
-    texel 3: spot cos(half cone angle), spot blend, area (m^2, area lights), an area light's
+    texel 3: spot cos(half cone angle), spot blend, area (m^2, area lights; for point and spot
+             lights 1 with Soft Falloff, Blender's default, 0 without), an area light's
              tan(Spread / 2) (-1: 180 degrees, and for the other types; spread_of)
 
 Units follow Cycles (intern/cycles/scene/light.cpp: point and spot strength x 1/(4 pi), area
@@ -89,6 +90,7 @@ def light_row(light, matrix_world) -> np.ndarray:
         if kind == 2:
             cos_half = math.cos(0.5 * float(light.spot_size))
             blend = float(light.spot_blend)
+        area = 1.0 if getattr(light, "use_soft_falloff", True) else 0.0
     else:
         area, radius = _area_size(light)
         row[7] = radius

@@ -332,6 +332,23 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot
       continue;
     }
     vec3 E = t2.rgb / max(dist * dist, 1e-8);
+    if (type <= 2 && r > 0.0) {
+      /* Cycles' point and spot light with a radius: with Soft Falloff (its default; texel 3 z
+       * 1) the disk facing p, each point seen at its cosine to the disk: I / (d^2 + r^2) on
+       * the axis; without it a sphere, I / d^2 from the centre. Measured: a 0.25 m light 0.4 m
+       * over a floor read 9% over Cycles' soft falloff below it, 20% under its sphere
+       * (tests/gpu/test_light_falloff.py) */
+      vec3 c = t0.yzw - p;
+      float dc = length(c);
+      vec3 lc = c / max(dc, 1e-6);
+      if (t3.z > 0.5) {
+        E *= max(dot(L, lc), 0.0);
+      }
+      else {                       /* the samples only shadow: the light is the centre's */
+        E = t2.rgb / max(dc * dc, 1e-8);
+        cos_s = max(dot(ns, lc), 0.0) * bump_shadowing(n, ns, lc);
+      }
+    }
     float cos_l = dot(-L, t1.xyz);
     if (type == 2) {
       float cos_half = t3.x;
