@@ -256,7 +256,9 @@ class Pass:
     def bind(self, **inputs) -> list:
         """Bind every declared input to the shader they ask for (shader_of(defines(inputs)));
         returns what must be held until the dispatch."""
-        defines = self.defines(inputs)
+        return self._bind(self.defines(inputs), inputs)
+
+    def _bind(self, defines, inputs) -> list:
         sh = self.shader_of(defines)
         expected = self.inputs()
         for k in sorted(expected - set(inputs)):
@@ -311,9 +313,10 @@ class Pass:
 
     def run_groups(self, groups, **inputs):
         """Bind `inputs` and dispatch `groups` work groups ((x, y[, z]) or x)."""
-        held = self.bind(**inputs)  # noqa: F841 (held until the dispatch)
+        defines = self.defines(inputs)
+        held = self._bind(defines, inputs)  # noqa: F841 (held until the dispatch)
         g = (groups,) if np.isscalar(groups) else tuple(groups)
-        run(self.shader_of(self.defines(inputs)), *g)
+        run(self.shader_of(defines), *g)
 
 
 def _slots(kind):

@@ -19,7 +19,7 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 
 from blender_runner import run_python  # noqa: E402
 from exr_passes import read_pass  # noqa: E402
-from test_normal_maps import oct_decode  # noqa: E402
+from test_normal_maps import SUN_OVER_FLOOR, oct_decode  # noqa: E402
 
 SIZE = 48
 TILT = math.radians(30.0)
@@ -49,20 +49,7 @@ bump.inputs["Distance"].default_value = 1.0           # (5.0's default is 1 mm)
 links.new(tex.outputs["Color"], bump.inputs["Height"])
 links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
 floor.data.materials.append(mat)
-sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
-sun.data.energy = 3.0
-sun.data.angle = 0.0
-sun.rotation_euler = (0.0, 0.9, 0.0)                  # from +x and above
-cam = aimed_camera((0.0, 0.0, 8.0), (0.0, 0.0, 0.0))
-cam.data.type = 'ORTHO'
-cam.data.ortho_scale = 4.2
-scene.world = bpy.data.worlds.new("World")
-scene.world.color = (0.0, 0.0, 0.0)
-scene.render.resolution_x = scene.render.resolution_y = {SIZE}
-scene.render.resolution_percentage = 100
-res, err = bake()
-assert err is None, err
-scene.view_layers[0].use_pass_diffuse_direct = True
+""" + SUN_OVER_FLOOR + """
 R = render_lumen(save=("normal", "albedo", "emission", "position"), quality="OFF", exr="lumen.exr")
 render_cycles(16, exr="cycles.exr", bounces=0)
 bump.invert = True

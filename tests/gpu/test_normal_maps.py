@@ -27,6 +27,25 @@ from exr_passes import read_pass  # noqa: E402
 SIZE = 48
 TILT = math.radians(40.0)
 
+# a sun from +x and above, the floor seen from above by an orthographic camera, no world light;
+# baked, with the Diffuse Direct pass (test_bump.py shares it)
+SUN_OVER_FLOOR = f"""
+sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
+sun.data.energy = 3.0
+sun.data.angle = 0.0
+sun.rotation_euler = (0.0, 0.9, 0.0)                  # from +x and above
+cam = aimed_camera((0.0, 0.0, 8.0), (0.0, 0.0, 0.0))
+cam.data.type = 'ORTHO'
+cam.data.ortho_scale = 4.2
+scene.world = bpy.data.worlds.new("World")
+scene.world.color = (0.0, 0.0, 0.0)
+scene.render.resolution_x = scene.render.resolution_y = {SIZE}
+scene.render.resolution_percentage = 100
+res, err = bake()
+assert err is None, err
+scene.view_layers[0].use_pass_diffuse_direct = True
+"""
+
 SNIPPET = f"""
 import math
 
@@ -51,20 +70,7 @@ nmap = nodes.new("ShaderNodeNormalMap")
 links.new(tex.outputs["Color"], nmap.inputs["Color"])
 links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
 floor.data.materials.append(mat)
-sun = link(bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN")))
-sun.data.energy = 3.0
-sun.data.angle = 0.0
-sun.rotation_euler = (0.0, 0.9, 0.0)                  # from +x and above
-cam = aimed_camera((0.0, 0.0, 8.0), (0.0, 0.0, 0.0))
-cam.data.type = 'ORTHO'
-cam.data.ortho_scale = 4.2
-scene.world = bpy.data.worlds.new("World")
-scene.world.color = (0.0, 0.0, 0.0)
-scene.render.resolution_x = scene.render.resolution_y = {SIZE}
-scene.render.resolution_percentage = 100
-res, err = bake()
-assert err is None, err
-scene.view_layers[0].use_pass_diffuse_direct = True
+""" + SUN_OVER_FLOOR + """
 scene.view_layers[0].use_pass_normal = True
 R = render_lumen(save=("normal", "albedo", "emission", "position"), quality="OFF", exr="lumen.exr")
 render_cycles(16, exr="cycles.exr", bounces=0)
