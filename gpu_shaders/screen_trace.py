@@ -32,6 +32,10 @@ colour's hits, only for the rays the screen does not resolve):
                         indirect light it carries is 5.8% below the cache's and noisier
     otherwise           (the ray leaves the screen, or passes behind what a pixel shows) the SDF
                         trace starts at t_free, not at the ray's origin
+    a corner's rays     a ray that starts inside a surface's hit shell (a probe in a concave
+                        corner) hits it at once, as on the SDFs alone: the walk leaves its start
+                        pixel untested and vouched past the wall beside it (glow: half the rays
+                        that differed from the SDF-only trace; test_screen_trace_corners)
 
 Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step evaluates every
 object near the point; the screen finds the empty part of most of a room's rays. On llvmpipe the

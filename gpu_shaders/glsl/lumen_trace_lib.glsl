@@ -78,6 +78,20 @@ float lumen_walk(vec3 o, vec3 dir, float tmax, bool free_only, out float t_free,
     hit_px = ivec2(-1);
   }
   t_free = max(t_free - LUMEN_FREE_BACKOFF * 2.0 * gi_thin_margin(), 0.0);
+  if (t_free > 0.0 || ts >= 0.0) {
+    /* A ray that starts inside a surface's hit shell (a probe in a concave corner) hits it at
+     * once on the SDFs (sdf_ray_lib.glsl), and must here too: the walk, which leaves its start
+     * pixel untested, vouched for the pixels around the corner, and the SDF trace started past
+     * the shell (bench/quality.py's `glow`: half the rays that differed from the SDF-only
+     * trace, found the far side of the room; tests/gpu/test_screen_trace_corners.py). */
+    float h;
+    int nearest;
+    if (sdf_scene(o, h, nearest) <= GI_HIT_VOXELS * h) {
+      t_free = 0.0;
+      ts = SCREEN_BEHIND;
+      hit_px = ivec2(-1);
+    }
+  }
   return ts;
 }
 
