@@ -66,6 +66,10 @@ class ObjectInput:
     # visibility cones pass it (a window pane, a light blocker); it still bounces and blocks GI.
     # Not part of any bake hash.
     casts_shadow: bool = True
+    # Seen by diffuse rays (Object > Visibility > Ray Visibility > Diffuse): off, GI rays pass
+    # it as if it were not there (no bounce light from it, nor occlusion of others' bounce
+    # light); it still casts shadows (as Shadow says) and receives light. Not part of any hash.
+    diffuse_visible: bool = True
     # The share of light its cut-outs' holes let through one layer of its surface
     # (materials.shadow_transmission): shadow cones pass it by that much. Not part of any hash.
     shadow_transmission: float = 0.0

@@ -478,6 +478,7 @@ def extract_scene(depsgraph, view_layer=None):
                             and not flags.indirect_only(inst)),
             holdout=flags.holdout(inst),
             casts_shadow=bool(getattr(source, "visible_shadow", True)),
+            diffuse_visible=bool(getattr(source, "visible_diffuse", True)),
             shadow_transmission=data.transmission))
     if getattr(depsgraph, "mode", "VIEWPORT") != 'RENDER':
         for name in hidden_renderable(view_layer or depsgraph.view_layer):
@@ -688,6 +689,7 @@ class ExtractionCache:
                 camera_visible=cam,
                 holdout=flags.holdout(inst),
                 casts_shadow=bool(getattr(source, "visible_shadow", True)),
+                diffuse_visible=bool(getattr(source, "visible_diffuse", True)),
                 shadow_transmission=data.transmission))
         names = [o.name for o in objects]
         self.changed = bool(reads) or names != self.names
@@ -718,13 +720,15 @@ def shadow_pass(objects) -> dict:
     """{name: (share of light its shadow lets pass, share its GI rays pass)} of the ObjectInputs
     that let some pass (scene_state.SceneState.sync: the object table's texel 9 y and z). The
     shadow's: 1 for one that casts no shadow (Ray Visibility > Shadow off), else its
-    shadow_transmission (a cut-out's holes); the GI rays': the holes' alone."""
+    shadow_transmission (a cut-out's holes); the GI rays': 1 for one diffuse rays do not see
+    (Ray Visibility > Diffuse off), else the holes'."""
     out = {}
     for o in objects:
         holes = min(max(float(o.shadow_transmission), 0.0), 1.0)
         share = 1.0 if not o.casts_shadow else holes
-        if share > 0.0 or holes > 0.0:
-            out[o.name] = (share, holes)
+        gi = 1.0 if not o.diffuse_visible else holes
+        if share > 0.0 or gi > 0.0:
+            out[o.name] = (share, gi)
     return out
 
 

@@ -6,6 +6,8 @@ and Last Bake (scene.lumen.last_bake, and what changed since).
 Render Properties, with the Lumen GI engine chosen (as EEVEE's Sampling > Viewport / Render):
 Lumen GI > Viewport, Render, GI Method (a sub-panel per method, shown for the chosen one: the
 MethodPanel subclasses), Debug (debug view, GPU memory). All read scene.lumen.engine.
+Object Properties > Visibility > Ray Visibility (Camera, Diffuse, Shadow: what the engine
+honours), where EEVEE and Cycles put theirs.
 """
 import bpy
 
@@ -329,6 +331,33 @@ class RENDER_PT_lumen_gi_debug(_RenderPanel, bpy.types.Panel):
         draw_memory(layout, context.scene)
 
 
+class OBJECT_PT_lumen_ray_visibility(bpy.types.Panel):
+    """Object Properties > Visibility > Ray Visibility with Lumen GI: the switches the engine
+    honours (Blender's Visibility panel draws them for EEVEE only, and Cycles has its own)."""
+    bl_label = "Ray Visibility"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "object"
+    bl_parent_id = "OBJECT_PT_visibility"
+    COMPAT_ENGINES = {ENGINE}
+    KINDS = {'MESH', 'CURVE', 'SURFACE', 'META', 'FONT'}     # what the bake turns into meshes
+
+    @classmethod
+    def poll(cls, context):
+        ob = context.object
+        return context.engine in cls.COMPAT_ENGINES and ob is not None and ob.type in cls.KINDS
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        ob = context.object
+        col = layout.column()
+        col.prop(ob, "visible_camera", text="Camera", toggle=False)
+        col.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
+        col.prop(ob, "visible_shadow", text="Shadow", toggle=False)
+
+
 # Parents before their children (Blender requires it); the order is the drawing order.
 SIDEBAR_PANELS = (VIEW3D_PT_lumen, VIEW3D_PT_lumen_bake, VIEW3D_PT_lumen_object,
                   VIEW3D_PT_lumen_last_bake)
@@ -336,7 +365,8 @@ RENDER_PANELS = (RENDER_PT_lumen_gi, RENDER_PT_lumen_gi_viewport, RENDER_PT_lume
                  RENDER_PT_lumen_gi_method, RENDER_PT_lumen_gi_lumen, RENDER_PT_lumen_gi_ssgi,
                  RENDER_PT_lumen_gi_rsm, RENDER_PT_lumen_gi_lpv,
                  RENDER_PT_lumen_gi_vxgi, RENDER_PT_lumen_gi_debug)
-_CLASSES = SIDEBAR_PANELS + RENDER_PANELS
+OBJECT_PANELS = (OBJECT_PT_lumen_ray_visibility,)       # a child of Blender's Visibility panel
+_CLASSES = SIDEBAR_PANELS + RENDER_PANELS + OBJECT_PANELS
 
 
 def register():

@@ -183,8 +183,9 @@ float gi_cut_exit(int mesh, vec3 o, vec3 dir, float t)
  * table texel 9 z: the share of its area that is holes, scene_state.py) passes that share of the
  * light from beyond it: the ray goes on from where it leaves the
  * cut-out's shell, up to GI_CUT_LAYERS of them (the sky under a tree's leaves; without, the
- * leaves' cards stood for all of it, and their albedo is weighed by the alpha). hit_t and weight
- * are the first hit's. */
+ * leaves' cards stood for all of it, and their albedo is weighed by the alpha). An object
+ * diffuse rays do not see has share 1 (operators/extract.py shadow_pass). hit_t and weight are
+ * the first seen hit's. */
 vec3 gi_radiance_from(vec3 o, vec3 dir, float t_start, float tmax, out float hit_t,
                       out float weight)
 {
@@ -205,15 +206,20 @@ vec3 gi_radiance_from(vec3 o, vec3 dir, float t_start, float tmax, out float hit
     if (!gi_trace_lit_search(o, dir, ts, search_from, tmax, t, obj, mesh, voxel_L)) {
       return L + carry * sky_ray(dir);
     }
-    /* 0: an object without cards no voxel serves */
-    vec3 Lh = obj < 0 ? voxel_L : sc_sample_world(obj, o + t * dir, dir, w);
-    if (layer == 0) {
-      hit_t = t;
-      weight = w;
-    }
     float share = sdf_object_texel(mesh, 9).z;
+    /* share 1: an object diffuse rays do not see (Ray Visibility > Diffuse off): neither read
+     * nor the ray's hit */
+    vec3 Lh = vec3(0.0);
+    if (share < 1.0) {
+      /* 0: an object without cards no voxel serves */
+      Lh = obj < 0 ? voxel_L : sc_sample_world(obj, o + t * dir, dir, w);
+      if (hit_t >= tmax) {
+        hit_t = t;
+        weight = w;
+      }
+    }
     if (share <= 0.0 || layer == layers - 1) {
-      return L + carry * Lh;
+      return L + carry * (share < 1.0 ? Lh : sky_ray(dir));
     }
     L += carry * (1.0 - share) * Lh;
     carry *= share;

@@ -238,8 +238,8 @@ vec3 sc_near_emission(vec3 p, vec3 n, float voxel)
       i = int(entry.x + 0.5);
     }
     vec4 range4 = texelFetch(sc_instances, row_texel(i, 0, 1), 0);
-    if (range4.z < 0.5) {
-      continue;                   /* none of its cards emits */
+    if (range4.z < 0.5 || sdf_object_texel(i, 9).z >= 1.0) {
+      continue;                   /* none of its cards emits, or diffuse rays do not see it */
     }
     vec4 sphere = sdf_object_texel(i, 8);
     if (length(p - sphere.xyz) - sphere.w > reach) {

@@ -1,4 +1,5 @@
-"""With Lumen GI as the render engine, Blender's own panels an artist needs stay visible."""
+"""With Lumen GI as the render engine, Blender's own panels an artist needs stay visible, and
+Object > Visibility gets the Ray Visibility switches the engine honours."""
 from blender_runner import blender  # noqa: F401  (fixture)
 
 NEEDED = ["RENDER_PT_format", "RENDER_PT_output", "RENDER_PT_color_management", "DATA_PT_lens",
@@ -18,10 +19,16 @@ def test_stock_panels_show_for_lumen_and_unregister_cleanly(blender):
         with_engine = {{n: compat(n) for n in names}}
         light_panels = sum(compat(n) for n in ('DATA_PT_light', 'DATA_PT_EEVEE_light'))
         eevee_only = compat('RENDER_PT_eevee_sampling')
+        bpy.ops.mesh.primitive_cube_add()
+        ray = bpy.types.OBJECT_PT_lumen_ray_visibility
+        ray_poll = [ray.poll(SimpleNamespace(engine=e, object=bpy.context.object))
+                    for e in ('LUMEN_GI', 'CYCLES')]
+        ray_parent = (ray.bl_parent_id, compat(ray.bl_parent_id))
         addon.unregister()
         after = [n for n in names if compat(n)]
         emit(with_engine=with_engine, fmt_poll=fmt_poll, light_panels=light_panels,
-             eevee_only=eevee_only, after=after)
+             eevee_only=eevee_only, after=after, ray_poll=ray_poll, ray_parent=ray_parent,
+             ray_gone=not hasattr(bpy.types, 'OBJECT_PT_lumen_ray_visibility'))
     """)
     r = res.result
     missing = [n for n, ok in r["with_engine"].items() if not ok]
@@ -30,3 +37,8 @@ def test_stock_panels_show_for_lumen_and_unregister_cleanly(blender):
     assert r["light_panels"] == 1, "exactly one Light panel (EEVEE's: colour, power, radius)"
     assert not r["eevee_only"], "EEVEE's own render settings must not show for Lumen GI"
     assert r["after"] == [], f"unregister left LUMEN_GI in {r['after']}"
+    # Object > Visibility > Ray Visibility (Camera, Diffuse, Shadow) for Lumen GI alone, under
+    # Blender's Visibility panel, which shows with Lumen GI
+    assert r["ray_poll"] == [True, False]
+    assert r["ray_parent"] == ["OBJECT_PT_visibility", True]
+    assert r["ray_gone"]
