@@ -7,6 +7,8 @@ sun: the cube's bounce light tints the wall red (red over green 1.57). With its 
 visibility off, nothing red is left for GI rays to see, so the wall's indirect light is grey:
 red over green 1 within 1% (1.0005; what is left comes from the voxel lighting's far field,
 whose voxels still hold the cube's light). The cube is still drawn red either way.
+The viewport, one engine instance: unticking Diffuse (an edit, no re-bake) takes the red out of
+the wall's indirect light within the redraws that follow.
 """
 import sys
 from pathlib import Path
@@ -55,6 +57,29 @@ emit(ok=True)
 """
 
 
+SCENE = SNIPPET.split("for seen in (True, False):")[0]     # the scene, baked
+VIEW_SNIPPET = SCENE + """
+from lumen_gi.gpu_shaders import engine
+import viewport_harness
+
+SETTLE = 16
+tints = []
+
+def step(i):
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    if i % SETTLE == SETTLE - 1:
+        pos, nrm = R["position"], R["normal"]
+        wall = (pos[..., 3] > 0.5) & (np.abs(pos[..., 0] + 0.95) < 0.02) & (nrm[..., 0] > 0.9)
+        e = R["indirect"][wall][:, :3].mean(0)
+        tints.append(float(e[0] / e[1]))
+        red.visible_diffuse = False                       # untick Diffuse
+
+viewport_harness.run(scene, engine.LumenGIRenderEngine, 64, 64, 2 * SETTLE, step)
+emit(tints=tints)
+"""
+
+
 def test_diffuse_visibility_off_hides_the_object_from_gi(tmp_path):
     run = run_python(SNIPPET, tmp_path, timeout=600)
     assert run.returncode == 0, run.explain()
@@ -76,3 +101,12 @@ def test_diffuse_visibility_off_hides_the_object_from_gi(tmp_path):
         assert c[0] > 5 * c[1]                        # drawn red either way
     assert tint[True] > 1.1                           # the cube's bounce light, seen
     assert abs(tint[False] - 1.0) < 0.01              # nothing red for GI rays to see
+
+
+def test_viewport_sees_diffuse_visibility_unticked(tmp_path):
+    run = run_python(VIEW_SNIPPET, tmp_path, timeout=600)
+    assert run.returncode == 0, run.explain()
+    seen, unseen = run.result["tints"]
+    print("viewport, wall indirect red / green: seen", seen, "unticked", unseen)
+    assert seen > 1.1
+    assert abs(unseen - 1.0) < 0.01
