@@ -7,7 +7,9 @@
  * in the level's own cells (cell = origin + 4 * tile + 0..3, no toroidal wrap inside a tile).
  *   - the objects near the tile (the lecture's "filter most objects out by 4x4x4 tiles"): the
  *     VL_TILE_OBJECTS whose bounding sphere comes nearest to the tile's box, among those within
- *     vl_reach of it (sorted, nearest first), so step 2's short rays test a few objects, not all
+ *     vl_reach of it (sorted, nearest first), so step 2's short rays test a few objects, not all;
+ *     never one diffuse rays do not see (object table texel 9 z = 1, Ray Visibility > Diffuse
+ *     off): the voxels do not hold its light, and a far GI ray's search does not find it
  *   - every voxel of the tile cleared (6 empty faces)
  *   - the voxels near a surface (global SDF texel <= a voxel + the thin-wall margins; the same
  *     voxel, so no interpolation) and not inside a solid (a lookup never uses those, see
@@ -39,8 +41,8 @@ void main()
   for (int i = 0; i < objects; i++) {
     vec4 sphere = sdf_object_texel(i, 8);
     float d = length(max(abs(sphere.xyz - centre) - he, vec3(0.0))) - sphere.w;
-    if (d >= vl_reach) {
-      continue;
+    if (d >= vl_reach || sdf_object_texel(i, 9).z >= 1.0) {
+      continue;                   /* out of reach, or diffuse rays do not see it */
     }
     int j;
     if (count < VL_TILE_OBJECTS) {
