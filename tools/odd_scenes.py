@@ -488,7 +488,8 @@ def imported_material_features(bpy):
 @case
 def foliage_bumps_and_holdouts(bpy):
     """A scatter of cut-out leaves (one casting no shadow, one without UVs, one all holes), a
-    Bump node on an image and on a noise texture (not read: a warning), a Holdout shader."""
+    Bump node on an image and on a noise texture (not read: a warning), a Holdout shader, and
+    two cubes diffuse rays do not see (one emitting and shadowless)."""
     import numpy as np
     scene = base(bpy)
     img = bpy.data.images.new("Leaves", 16, 16, alpha=True)
@@ -552,6 +553,15 @@ def foliage_bumps_and_holdouts(bpy):
     bpy.context.object.data.materials.append(material("Noisy", bump="noise"))
     bpy.ops.mesh.primitive_cube_add(size=0.5, location=(0.0, -1.6, 0.25))
     bpy.context.object.data.materials.append(material("HeldOut", holdout=True))
+    # Ray Visibility > Diffuse off: a plain cube, and a glowing one that casts no shadow either
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(1.6, 1.6, 0.25))
+    bpy.context.object.visible_diffuse = False
+    bpy.ops.mesh.primitive_cube_add(size=0.3, location=(-1.6, 1.6, 0.15))
+    glow = bpy.data.materials.new("UnseenGlow")
+    glow.node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 5.0
+    glow.node_tree.nodes["Principled BSDF"].inputs["Emission Color"].default_value = (1, 1, 1, 1)
+    bpy.context.object.data.materials.append(glow)
+    bpy.context.object.visible_diffuse = bpy.context.object.visible_shadow = False
 
 
 @case
