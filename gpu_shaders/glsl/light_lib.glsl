@@ -300,6 +300,27 @@ vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
  * (each sample keeps the cone width of `samples`). n: the geometric normal (the cones' start
  * and what faces the light), ns: the shading normal (a normal map's; the cosine). A light with one sample (a sun, a point light
  * without radius) returns its whole light from every part. */
+/* Irradiance per unit intensity from a uniformly emitting sphere of radius r whose centre is
+ * dc away, at cosine cos_c from the receiver's normal: cos_c / dc^2 (a point light's) while it is
+ * all above the receiver's horizon; where the horizon cuts it, the exact form factor of the cap
+ * above (the closed form of a sphere's irradiance with horizon clipping, as in Snyder 1996 and
+ * Frostbite's "Moving to PBR"), over pi r^2 (the intensity of a sphere of unit radiance).
+ * tests/gpu/test_light_falloff.py: a patch whose horizon cuts a sphere light read 41% under
+ * Cycles when the samples below it were dropped. */
+float light_sphere_factor(float cos_c, float r, float dc)
+{
+  float s2 = clamp(r * r / max(dc * dc, 1e-12), 1e-8, 1.0);    /* sin^2 of its angular radius */
+  if (cos_c * cos_c >= s2) {
+    return max(cos_c, 0.0) / max(dc * dc, 1e-8);
+  }
+  float sin_c = sqrt(max(1.0 - cos_c * cos_c, 1e-12));
+  float x = sqrt(max(1.0 / s2 - 1.0, 0.0));
+  float y = clamp(-x * cos_c / sin_c, -1.0, 1.0);
+  float q = sin_c * sqrt(1.0 - y * y);
+  float f = (cos_c * acos(y) - x * q) * s2 + atan(q, x);
+  return max(f, 0.0) / (3.14159265 * max(r * r, 1e-12));
+}
+
 vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot, int first,
                            int take)
 {
@@ -322,6 +343,8 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot
   float sub = r / sqrt(float(count));            /* radius of each sample's share of the light */
   vec3 sum = vec3(0.0);
   int n_take = clamp(take, 1, count);
+  bool sphere = type <= 2 && r > 0.0 && t3.z <= 0.5;
+  int above = 0;                  /* the samples above the horizon: a sphere's shadow is theirs */
   for (int j = 0; j < n_take; j++) {
     vec3 q = light_point(i, p, (first + j) % count, count, rot);
     vec3 to = q - p;
@@ -331,6 +354,7 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot
     if (cos_s <= 0.0 || dot(n, L) <= 0.0) {
       continue;
     }
+    above++;
     vec3 E = t2.rgb / max(dist * dist, 1e-8);
     if (type <= 2 && r > 0.0) {
       /* Cycles' point and spot light with a radius: with Soft Falloff (its default; texel 3 z
@@ -344,9 +368,9 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot
       if (t3.z > 0.5) {
         E *= max(dot(L, lc), 0.0);
       }
-      else {                       /* the samples only shadow: the light is the centre's */
-        E = t2.rgb / max(dc * dc, 1e-8);
-        cos_s = max(dot(ns, lc), 0.0) * bump_shadowing(n, ns, lc);
+      else {                       /* the samples only shadow: the light is the sphere's */
+        E = t2.rgb * light_sphere_factor(dot(ns, lc), r, dc);
+        cos_s = bump_shadowing(n, ns, lc);
       }
     }
     float cos_l = dot(-L, t1.xyz);
@@ -373,5 +397,5 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot
     float k = light_k(dist, sub);
     sum += E * cos_s * (t2.w > 0.5 ? 1.0 : cone_visibility(p, n, L, reach, k));  /* w: no shadow */
   }
-  return sum / float(n_take);
+  return sum / float(sphere ? max(above, 1) : n_take);
 }
