@@ -66,7 +66,7 @@ def test_point_light_falloff_near_a_floor_as_cycles(tmp_path):
             assert abs(a / b - 1.0) < 0.04, (name, lo, a, b)
 
 
-HORIZON = f"""
+HORIZON = """
 scene = empty_scene(voxel_density=16.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=0.2)
 mat = principled("Patch", (0.8, 0.8, 0.8))
