@@ -121,5 +121,8 @@ def light_table(depsgraph) -> np.ndarray:
         if not (inst.is_instance or rendering) \
                 and not obj.original.visible_get(view_layer=view_layer):
             continue
+        if not getattr(obj.original, "visible_diffuse", True):
+            continue          # Ray Visibility > Diffuse off: in Cycles it lights no diffuse
+                              # surface, directly or by bounces, and diffuse is all we shade
         rows.append(light_row(obj.data, inst.matrix_world))
     return np.array(rows, np.float32).reshape(-1, ROW)

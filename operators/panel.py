@@ -333,7 +333,8 @@ class RENDER_PT_lumen_gi_debug(_RenderPanel, bpy.types.Panel):
 
 class OBJECT_PT_lumen_ray_visibility(bpy.types.Panel):
     """Object Properties > Visibility > Ray Visibility with Lumen GI: the switches the engine
-    honours (Blender's Visibility panel draws them for EEVEE only, and Cycles has its own)."""
+    honours (Blender's Visibility panel draws them for EEVEE only, and Cycles has its own): a
+    mesh's Camera, Diffuse and Shadow; a light's Diffuse (off, it lights nothing we shade)."""
     bl_label = "Ray Visibility"
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
@@ -345,7 +346,8 @@ class OBJECT_PT_lumen_ray_visibility(bpy.types.Panel):
     @classmethod
     def poll(cls, context):
         ob = context.object
-        return context.engine in cls.COMPAT_ENGINES and ob is not None and ob.type in cls.KINDS
+        return (context.engine in cls.COMPAT_ENGINES and ob is not None
+                and (ob.type in cls.KINDS or ob.type == 'LIGHT'))
 
     def draw(self, context):
         layout = self.layout
@@ -353,6 +355,9 @@ class OBJECT_PT_lumen_ray_visibility(bpy.types.Panel):
         layout.use_property_decorate = False
         ob = context.object
         col = layout.column()
+        if ob.type == 'LIGHT':
+            col.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
+            return
         col.prop(ob, "visible_camera", text="Camera", toggle=False)
         col.prop(ob, "visible_diffuse", text="Diffuse", toggle=False)
         col.prop(ob, "visible_shadow", text="Shadow", toggle=False)

@@ -23,6 +23,10 @@ def test_stock_panels_show_for_lumen_and_unregister_cleanly(blender):
         ray = bpy.types.OBJECT_PT_lumen_ray_visibility
         ray_poll = [ray.poll(SimpleNamespace(engine=e, object=bpy.context.object))
                     for e in ('LUMEN_GI', 'CYCLES')]
+        bpy.ops.object.light_add(type='POINT')
+        ray_poll.append(ray.poll(SimpleNamespace(engine='LUMEN_GI', object=bpy.context.object)))
+        bpy.ops.object.camera_add()
+        ray_poll.append(ray.poll(SimpleNamespace(engine='LUMEN_GI', object=bpy.context.object)))
         ray_parent = (ray.bl_parent_id, compat(ray.bl_parent_id))
         addon.unregister()
         after = [n for n in names if compat(n)]
@@ -39,6 +43,6 @@ def test_stock_panels_show_for_lumen_and_unregister_cleanly(blender):
     assert r["after"] == [], f"unregister left LUMEN_GI in {r['after']}"
     # Object > Visibility > Ray Visibility (Camera, Diffuse, Shadow) for Lumen GI alone, under
     # Blender's Visibility panel, which shows with Lumen GI
-    assert r["ray_poll"] == [True, False]
+    assert r["ray_poll"] == [True, False, True, False]     # a mesh, not Cycles; a light; no camera
     assert r["ray_parent"] == ["OBJECT_PT_visibility", True]
     assert r["ray_gone"]

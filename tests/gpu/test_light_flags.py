@@ -1,6 +1,8 @@
 """Light settings an artist sets in Cycles' light panel: Cast Shadow off (a fill light lights
 what is behind things) and a light hidden in the viewport only (F12 renders it, as Cycles does).
-Both were ignored: every light cast shadows, and F12 dropped a light hidden by the eye."""
+Both were ignored: every light cast shadows, and F12 dropped a light hidden by the eye. And
+Object > Visibility > Ray Visibility > Diffuse off: Cycles' diffuse surfaces do not see the light
+(no direct light from it, so no bounce either); it lit everything before."""
 import math
 import sys
 from pathlib import Path
@@ -27,10 +29,13 @@ scene.lumen.engine.render_quality = "OFF"
 scene.lumen.engine.aa_samples = 1
 scene.render.resolution_x = scene.render.resolution_y = 48
 out = {"bake": bake()}
-for name in ("shadow", "no_shadow", "eye_hidden"):
+for name in ("shadow", "no_shadow", "eye_hidden", "no_diffuse"):
     sun.data.use_shadow = name != "no_shadow"
     if name == "eye_hidden":
         sun.hide_set(True)
+    if name == "no_diffuse":
+        sun.hide_set(False)
+        sun.visible_diffuse = False
     bpy.ops.render.render()
     R = engine.LAST_RENDER
     assert "error" not in R, R.get("traceback", R.get("error"))
@@ -52,3 +57,5 @@ def test_cast_shadow_off_and_a_light_hidden_in_the_viewport(tmp_path):
     assert (shadow < 0.2 * unshadowed).sum() > 20        # the box's shadow on the floor
     assert np.abs(free - unshadowed).max() < 0.01 * unshadowed, (free.min(), free.max())
     np.testing.assert_allclose(hidden, shadow, atol=1e-6)  # hidden by the eye: lights F12 still
+    # Ray Visibility > Diffuse off: it lights no diffuse surface (Cycles), and we shade no other
+    np.testing.assert_array_equal(np.load(tmp_path / "no_diffuse.npy")[..., :3], 0.0)
