@@ -294,12 +294,6 @@ vec3 light_irradiance(int i, vec3 p, vec3 n, int samples, vec2 rot)
   return light_irradiance_part(i, p, n, n, samples, rot, 0, samples);
 }
 
-/* light_irradiance from `take` of the light's `samples` strata, starting at stratum `first`
- * (wrapping): the viewport spreads a light's samples over redraws (direct_light.py), and the mean
- * of the parts of consecutive redraws that cover every stratum once is light_irradiance exactly
- * (each sample keeps the cone width of `samples`). n: the geometric normal (the cones' start
- * and what faces the light), ns: the shading normal (a normal map's; the cosine). A light with one sample (a sun, a point light
- * without radius) returns its whole light from every part. */
 /* Irradiance per unit intensity from a uniformly emitting sphere of radius r whose centre is
  * dc away, at cosine cos_c from the receiver's normal: cos_c / dc^2 (a point light's) while it is
  * all above the receiver's horizon; where the horizon cuts it, the exact form factor of the cap
@@ -321,6 +315,12 @@ float light_sphere_factor(float cos_c, float r, float dc)
   return max(f, 0.0) / (3.14159265 * max(r * r, 1e-12));
 }
 
+/* light_irradiance from `take` of the light's `samples` strata, starting at stratum `first`
+ * (wrapping): the viewport spreads a light's samples over redraws (direct_light.py), and the mean
+ * of the parts of consecutive redraws that cover every stratum once is light_irradiance exactly
+ * (each sample keeps the cone width of `samples`). n: the geometric normal (the cones' start
+ * and what faces the light), ns: the shading normal (a normal map's; the cosine). A light with one sample (a sun, a point light
+ * without radius) returns its whole light from every part. */
 vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot, int first,
                            int take)
 {
