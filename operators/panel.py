@@ -6,8 +6,8 @@ and Last Bake (scene.lumen.last_bake, and what changed since).
 Render Properties, with the Lumen GI engine chosen (as EEVEE's Sampling > Viewport / Render):
 Lumen GI > Viewport, Render, GI Method (a sub-panel per method, shown for the chosen one: the
 MethodPanel subclasses), Debug (debug view, GPU memory). All read scene.lumen.engine.
-Object Properties > Visibility > Ray Visibility (Camera, Diffuse, Shadow: what the engine
-honours), where EEVEE and Cycles put theirs.
+Object Properties > Visibility > Ray Visibility (a mesh's Camera, Diffuse and Shadow, a light's
+Diffuse: what the engine honours), where EEVEE and Cycles put theirs.
 """
 import bpy
 
