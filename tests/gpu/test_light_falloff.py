@@ -19,25 +19,22 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 from blender_runner import run_python  # noqa: E402
 from exr_passes import read_pass  # noqa: E402
 
-SIZE = 64
-
-SNIPPET = f"""
-import os
-scene = empty_scene(voxel_density=8.0, cache_dir="cache")
-bpy.ops.mesh.primitive_plane_add(size=6.0)
-floor_mat = principled("Floor", (0.8, 0.8, 0.8))
-floor_mat.node_tree.nodes["Principled BSDF"].inputs["Specular IOR Level"].default_value = 0.0
-bpy.context.object.data.materials.append(floor_mat)
+SETUP = """
+scene = empty_scene(voxel_density={density}, cache_dir="cache")
+bpy.ops.mesh.primitive_plane_add(size={plane})
+mat = principled("Receiver", (0.8, 0.8, 0.8))
+mat.node_tree.nodes["Principled BSDF"].inputs["Specular IOR Level"].default_value = 0.0
+bpy.context.object.data.materials.append(mat)
 lamp = link(bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT")))
 lamp.data.energy = 100.0
-lamp.data.shadow_soft_size = 0.25
-lamp.location = (0.0, 0.0, 0.4)
-cam = aimed_camera((0.0, 0.0, 8.0), (0.0, 0.0, 0.0))
+lamp.data.shadow_soft_size = {radius}
+lamp.location = {location}
+cam = aimed_camera((0.0, 0.0, {height}), (0.0, 0.0, 0.0))
 cam.data.type = 'ORTHO'
-cam.data.ortho_scale = 4.0
+cam.data.ortho_scale = {view}
 scene.world = bpy.data.worlds.new("World")
 scene.world.color = (0.0, 0.0, 0.0)
-scene.render.resolution_x = scene.render.resolution_y = {SIZE}
+scene.render.resolution_x = scene.render.resolution_y = {size}
 scene.render.resolution_percentage = 100
 scene.view_layers[0].use_pass_diffuse_direct = True
 res, err = bake()
@@ -46,12 +43,19 @@ for soft in (True, False):
     lamp.data.use_soft_falloff = soft
     name = "soft" if soft else "sphere"
     render_lumen(save=("position",), quality="OFF", exr=name + "_lumen.exr")
-    render_cycles(256, exr=name + "_cycles.exr", bounces=0)
+    render_cycles({samples}, exr=name + "_cycles.exr", bounces=0)
 """
 
 
+def snippet(**kw) -> str:
+    """A receiving plane seen from above (orthographic) and one point light, rendered with and
+    without Soft Falloff by us (GI off) and by Cycles (no bounces)."""
+    return SETUP.format(**kw)
+
+
 def test_point_light_falloff_near_a_floor_as_cycles(tmp_path):
-    run = run_python(SNIPPET, tmp_path, timeout=600)
+    run = run_python(snippet(density=8.0, plane=6.0, radius=0.25, location=(0.0, 0.0, 0.4),
+                             height=8.0, view=4.0, size=64, samples=256), tmp_path, timeout=600)
     assert run.returncode == 0, run.explain()
     pos = np.load(tmp_path / "position.npy")
     r = np.hypot(pos[..., 0], pos[..., 1])
@@ -66,40 +70,13 @@ def test_point_light_falloff_near_a_floor_as_cycles(tmp_path):
             assert abs(a / b - 1.0) < 0.04, (name, lo, a, b)
 
 
-HORIZON = """
-scene = empty_scene(voxel_density=16.0, cache_dir="cache")
-bpy.ops.mesh.primitive_plane_add(size=0.2)
-mat = principled("Patch", (0.8, 0.8, 0.8))
-mat.node_tree.nodes["Principled BSDF"].inputs["Specular IOR Level"].default_value = 0.0
-bpy.context.object.data.materials.append(mat)
-lamp = link(bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT")))
-lamp.data.energy = 100.0
-lamp.data.shadow_soft_size = 0.3
-lamp.location = (0.8, 0.0, 0.1)
-cam = aimed_camera((0.0, 0.0, 3.0), (0.0, 0.0, 0.0))
-cam.data.type = 'ORTHO'
-cam.data.ortho_scale = 0.16
-scene.world = bpy.data.worlds.new("World")
-scene.world.color = (0.0, 0.0, 0.0)
-scene.render.resolution_x = scene.render.resolution_y = 16
-scene.render.resolution_percentage = 100
-scene.view_layers[0].use_pass_diffuse_direct = True
-res, err = bake()
-assert err is None, err
-for soft in (False, True):
-    lamp.data.use_soft_falloff = soft
-    name = "soft" if soft else "sphere"
-    render_lumen(save=("position",), quality="OFF", exr=name + "_lumen.exr")
-    render_cycles(1024, exr=name + "_cycles.exr", bounces=0)
-"""
-
-
 def test_sphere_light_straddling_the_horizon_as_cycles(tmp_path):
     """A 0.3 m point light whose centre is 0.1 m above a small patch's plane and 0.8 m to the
     side: part of it is below the patch's horizon. Cycles lights the patch from the part above;
     ours takes the visible cap's exact form factor (a sphere: Soft Falloff off) or the disk
     samples above the horizon (Soft Falloff on)."""
-    run = run_python(HORIZON, tmp_path, timeout=600)
+    run = run_python(snippet(density=16.0, plane=0.2, radius=0.3, location=(0.8, 0.0, 0.1),
+                             height=3.0, view=0.16, size=16, samples=1024), tmp_path, timeout=600)
     assert run.returncode == 0, run.explain()
     patch = np.load(tmp_path / "position.npy")[..., 3] > 0.5
     assert patch.mean() > 0.9
