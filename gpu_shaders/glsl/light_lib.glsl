@@ -343,7 +343,19 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot
   float sub = r / sqrt(float(count));            /* radius of each sample's share of the light */
   vec3 sum = vec3(0.0);
   int n_take = clamp(take, 1, count);
-  bool sphere = type <= 2 && r > 0.0 && t3.z <= 0.5;
+  /* Cycles' point and spot light with a radius: with Soft Falloff (its default; texel 3 z 1)
+   * the disk facing p, each point seen at its cosine to the disk: I / (d^2 + r^2) on the axis;
+   * without it a sphere, whose light (light_sphere_factor) the samples only shadow. Measured: a
+   * 0.25 m light 0.4 m over a floor read 9% over Cycles' soft falloff below it, 20% under its
+   * sphere (tests/gpu/test_light_falloff.py). Both need the centre's direction lc, the same
+   * for every sample. */
+  bool round_light = type <= 2 && r > 0.0;
+  bool sphere = round_light && t3.z <= 0.5;
+  vec3 c = t0.yzw - p;
+  float dc = length(c);
+  vec3 lc = c / max(dc, 1e-6);
+  vec3 E_sphere = sphere ? t2.rgb * light_sphere_factor(dot(ns, lc), r, dc) : vec3(0.0);
+  float cos_sphere = sphere ? bump_shadowing(n, ns, lc) : 0.0;
   int above = 0;                  /* the samples above the horizon: a sphere's shadow is theirs */
   for (int j = 0; j < n_take; j++) {
     vec3 q = light_point(i, p, (first + j) % count, count, rot);
@@ -356,22 +368,12 @@ vec3 light_irradiance_part(int i, vec3 p, vec3 n, vec3 ns, int samples, vec2 rot
     }
     above++;
     vec3 E = t2.rgb / max(dist * dist, 1e-8);
-    if (type <= 2 && r > 0.0) {
-      /* Cycles' point and spot light with a radius: with Soft Falloff (its default; texel 3 z
-       * 1) the disk facing p, each point seen at its cosine to the disk: I / (d^2 + r^2) on
-       * the axis; without it a sphere, I / d^2 from the centre. Measured: a 0.25 m light 0.4 m
-       * over a floor read 9% over Cycles' soft falloff below it, 20% under its sphere
-       * (tests/gpu/test_light_falloff.py) */
-      vec3 c = t0.yzw - p;
-      float dc = length(c);
-      vec3 lc = c / max(dc, 1e-6);
-      if (t3.z > 0.5) {
-        E *= max(dot(L, lc), 0.0);
-      }
-      else {                       /* the samples only shadow: the light is the sphere's */
-        E = t2.rgb * light_sphere_factor(dot(ns, lc), r, dc);
-        cos_s = bump_shadowing(n, ns, lc);
-      }
+    if (sphere) {
+      E = E_sphere;
+      cos_s = cos_sphere;
+    }
+    else if (round_light) {
+      E *= max(dot(L, lc), 0.0);
     }
     float cos_l = dot(-L, t1.xyz);
     if (type == 2) {
