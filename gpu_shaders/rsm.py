@@ -16,9 +16,11 @@ Per frame, for every light row (operators/lights.py; a sun taken out of an HDRI 
     gi_accumulate   F12's running mean over render_frames (a new sample rotation each), the
                     viewport's exponential history
 The paper's maps are for spot and parallel lights; point and area lights are mapped the same way so
-that any scene's lights bounce (objects hidden from the camera are missing from the maps too, as
-the G-buffer pass leaves them out). Emission bounces only through the direct pass's lights: an
-emissive surface is no light here. Needs a GPU context.
+that any scene's lights bounce. A map shows what the light meets (light_view): objects hidden
+from the camera or held out too, not those that cast no shadow (Ray Visibility > Shadow off:
+light passes them), and those diffuse rays do not see (Ray Visibility > Diffuse off) black (they
+stop the light and bounce none of it). Emission bounces only through the direct pass's lights:
+an emissive surface is no light here. Needs a GPU context.
 """
 from __future__ import annotations
 
@@ -118,6 +120,32 @@ def light_frusta(row, lo, hi, res: int) -> list:
     return [(_perspective(pos, row[4:7], tan_half, far), 0.0, tan_half)]
 
 
+def light_view(objects) -> list:
+    """The ObjectInputs as a light's map draws them (see the module docstring): the camera's
+    flags cleared, shadowless ones left out, diffuse-invisible ones black."""
+    import dataclasses
+
+    from ..lumen_addon.materials import Material
+
+    black = dict(base_color=(0.0, 0.0, 0.0), base_color_texture=None, vertex_colors=False)
+    out = []
+    for o in objects:
+        if not o.casts_shadow:
+            continue
+        change = {}
+        if not o.camera_visible or o.holdout:
+            change.update(camera_visible=True, holdout=False)
+        unseen = not o.diffuse_visible
+        if o.materials and (unseen or any(m.holdout for m in o.materials)):
+            change["materials"] = [dataclasses.replace(m, holdout=False, **(black if unseen else {}))
+                                   for m in o.materials]
+        elif unseen:                     # no materials: plain grey, so one black material
+            change.update(materials=[Material(name="unseen", base_color=(0.0, 0.0, 0.0))],
+                          material_ids=np.zeros(len(o.triangles), np.int32))
+        out.append(dataclasses.replace(o, **change) if change else o)
+    return out
+
+
 class RSM:
     """The lights' reflective shadow maps of the last frame and the gathered history."""
 
@@ -127,6 +155,7 @@ class RSM:
         self.history = None
         self.frames = 0
         self.key = None              # (view key, settings, sky key) of the history
+        self._view = None            # (objects, light_view(objects)) of the last maps
 
     def reset(self):
         self.history, self.frames = None, 0
@@ -136,6 +165,9 @@ class RSM:
         materials may have changed; a map costs one G-buffer draw at res^2)."""
         rows = np.asarray(lights, np.float32).reshape(-1, 16)
         lo, hi = scene_bounds(objects)
+        if self._view is None or self._view[0] is not objects:
+            self._view = (objects, light_view(objects))    # the same list until a new walk
+        objects = self._view[1]
         self.maps = []
         cache = {}                                   # texture uploads shared by the maps
         for index, row in enumerate(rows):

@@ -115,3 +115,34 @@ def test_viewport_sees_diffuse_visibility_unticked(tmp_path):
     print("viewport, wall indirect red / green: seen", seen, "unticked", unseen)
     assert seen > 1.1
     assert abs(unseen - 1.0) < 0.1 * (seen - 1.0)     # the red mostly gone, still converging
+
+
+RSM_SNIPPET = SCENE + """
+scene.lumen.engine.gi_method = "RSM"
+for seen in (True, False):
+    red.visible_diffuse = far.visible_diffuse = seen
+    bpy.ops.render.render()
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    for key in ("indirect", "position", "normal"):
+        np.save(f"{key}_{seen}.npy", R[key])
+emit(ok=True)
+"""
+
+
+def test_reflective_shadow_maps_bounce_nothing_off_an_unseen_object(tmp_path):
+    """GI Method RSM (and LPV, which injects the same maps): the light's map draws an object
+    diffuse rays do not see black, so it bounces nothing (red over green 1 on the wall), while
+    it still stops the light (rsm.light_view)."""
+    run = run_python(RSM_SNIPPET, tmp_path, timeout=600)
+    assert run.returncode == 0, run.explain()
+    pos = np.load(tmp_path / "position_True.npy")
+    nrm = np.load(tmp_path / "normal_True.npy")
+    wall = (pos[..., 3] > 0.5) & (np.abs(pos[..., 0] + 0.95) < 0.02) & (nrm[..., 0] > 0.9)
+    tint = {}
+    for seen in (True, False):
+        e = np.load(tmp_path / f"indirect_{seen}.npy")[wall][:, :3].mean(0)
+        tint[seen] = e[0] / e[1]
+        print("RSM: wall indirect", e, "red / green", tint[seen])
+    assert tint[True] > 1.1
+    assert abs(tint[False] - 1.0) < 1e-3
