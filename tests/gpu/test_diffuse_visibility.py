@@ -23,7 +23,7 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 
 from blender_runner import run_python  # noqa: E402
 
-SNIPPET = """
+SCENE = """
 from lumen_gi.gpu_shaders import engine
 
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
@@ -51,6 +51,9 @@ res, err = bake()
 assert err is None, err
 scene.render.engine = "LUMEN_GI"
 scene.lumen.engine.render_quality = "LOW"
+"""
+# F12 with the cubes seen, then unseen by diffuse rays: each one's images as <key>_<seen>.npy
+RENDERS = """
 for seen in (True, False):
     red.visible_diffuse = far.visible_diffuse = seen
     bpy.ops.render.render()
@@ -62,7 +65,6 @@ emit(ok=True)
 """
 
 
-SCENE = SNIPPET.split("for seen in (True, False):")[0]     # the scene, baked
 VIEW_SNIPPET = SCENE + """
 from lumen_gi.gpu_shaders import engine
 import viewport_harness
@@ -86,7 +88,7 @@ emit(tints=tints)
 
 
 def test_diffuse_visibility_off_hides_the_object_from_gi(tmp_path):
-    run = run_python(SNIPPET, tmp_path, timeout=600)
+    run = run_python(SCENE + RENDERS, tmp_path, timeout=600)
     assert run.returncode == 0, run.explain()
     pos = np.load(tmp_path / "position_True.npy")
     nrm = np.load(tmp_path / "normal_True.npy")
@@ -117,17 +119,7 @@ def test_viewport_sees_diffuse_visibility_unticked(tmp_path):
     assert abs(unseen - 1.0) < 0.1 * (seen - 1.0)     # the red mostly gone, still converging
 
 
-RSM_SNIPPET = SCENE + """
-scene.lumen.engine.gi_method = "RSM"
-for seen in (True, False):
-    red.visible_diffuse = far.visible_diffuse = seen
-    bpy.ops.render.render()
-    R = engine.LAST_RENDER
-    assert "error" not in R, R.get("traceback", R.get("error"))
-    for key in ("indirect", "position", "normal"):
-        np.save(f"{key}_{seen}.npy", R[key])
-emit(ok=True)
-"""
+RSM_SNIPPET = SCENE + 'scene.lumen.engine.gi_method = "RSM"\n' + RENDERS
 
 
 def test_reflective_shadow_maps_bounce_nothing_off_an_unseen_object(tmp_path):
