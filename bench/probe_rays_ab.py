@@ -62,7 +62,8 @@ def report(A, B, show: int):
         print(f"  {name:15s} rays {m.sum():6d} ({m.mean() * 100:5.2f}%)  |B - A| "
               f"{dL[m].sum() / total:.5f}  B - A {(Lb - La)[m].sum() / total:+.5f}")
         for i in np.argsort(-dL[m])[:show]:
-            print(f"      t {ta[m][i]:8.3f} -> {tb[m][i]:8.3f}   L {La[m][i]:8.4f} -> {Lb[m][i]:8.4f}")
+            print(f"      t {ta[m][i]:8.3f} -> {tb[m][i]:8.3f}   "
+                  f"L {La[m][i]:8.4f} -> {Lb[m][i]:8.4f}")
 
 
 def main():

@@ -137,7 +137,8 @@ def light_view(objects) -> list:
             change.update(camera_visible=True, holdout=False)
         unseen = not o.diffuse_visible
         if o.materials and (unseen or any(m.holdout for m in o.materials)):
-            change["materials"] = [dataclasses.replace(m, holdout=False, **(black if unseen else {}))
+            look = black if unseen else {}
+            change["materials"] = [dataclasses.replace(m, holdout=False, **look)
                                    for m in o.materials]
         elif unseen:                     # no materials: plain grey, so one black material
             change.update(materials=[Material(name="unseen", base_color=(0.0, 0.0, 0.0))],
