@@ -18,6 +18,11 @@ from lumen_gi.operators.extract import extract_scene
 def extract():
     objects, warnings = extract_scene(bpy.context.evaluated_depsgraph_get())
     return {o.name: o for o in objects}, warnings
+def extract_cubes(mats):
+    # a cube per material (named as its key, 3 m apart), then extract()
+    for i, (name, mat) in enumerate(mats.items()):
+        cube(name, location=(3.0 * i, 0.0, 0.0)).data.materials.append(mat)
+    return extract()
 """
 
 
@@ -463,10 +468,7 @@ mats["TexMix"] = m
 equivalent = principled("PrincipledLamp", base=(0.0, 0.0, 0.0), emission=(1.0, 0.5, 0.25),
                         strength=5.0)
 mats["PrincipledLamp"] = equivalent
-for i, (name, mat) in enumerate(mats.items()):
-    ob = cube(name, location=(3.0 * i, 0.0, 0.0))
-    ob.data.materials.append(mat)
-objects, warnings = extract()
+objects, warnings = extract_cubes(mats)
 def fields(o):
     m = o.materials[0]
     return [list(m.base_color), m.base_color_texture is not None, list(m.emission_color),
@@ -706,10 +708,7 @@ mats = {"Bump": bumped("Bump"), "Inverted": bumped("Inverted", invert=True, dist
         "AlphaBump": bumped("AlphaBump", output="Alpha"),
         "NoiseBump": bumped("NoiseBump", source="ShaderNodeTexNoise"),
         "Chained": bumped("Chained", chained=True)}
-for i, (name, mat) in enumerate(mats.items()):
-    ob = cube(name, location=(3.0 * i, 0.0, 0.0))
-    ob.data.materials.append(mat)
-objects, warnings = extract()
+objects, warnings = extract_cubes(mats)
 def fields(o):
     m = o.materials[0]
     h = m.normal_texture

@@ -19,36 +19,21 @@ sys.path[:0] = [str(HERE.parent / "blender")]
 
 from blender_runner import run_python  # noqa: E402
 from exr_passes import read_pass  # noqa: E402
-from test_normal_maps import SUN_OVER_FLOOR, oct_decode  # noqa: E402
+from test_normal_maps import SUN_OVER_FLOOR, oct_decode, textured_floor  # noqa: E402
 
 SIZE = 48
 TILT = math.radians(30.0)
 SLOPE = 4.0 * math.tan(TILT)         # height per unit of u: the plane is 4 m across
 
-SNIPPET = f"""
-import math
-
-scene = empty_scene(voxel_density=8.0, cache_dir="cache")
-bpy.ops.mesh.primitive_plane_add(size=4.0)
-floor = bpy.context.object
-img = bpy.data.images.new("Height", 64, 4, alpha=False, float_buffer=True)
-img.colorspace_settings.name = "Non-Color"
+SNIPPET = textured_floor("Height", 64, 4) + f"""
 u = (np.arange(64) + 0.5) / 64
 h = np.where(u < 0.5, {SLOPE} * (0.5 - u), 0.0).astype(np.float32)
-px = np.ones((4, 64, 4), np.float32)
 px[..., :3] = h[None, :, None]
 img.pixels.foreach_set(px.ravel())
-mat = principled("Bumpy", (0.8, 0.8, 0.8))
-nodes, links = mat.node_tree.nodes, mat.node_tree.links
-bsdf = nodes["Principled BSDF"]
-bsdf.inputs["Specular IOR Level"].default_value = 0.0
-tex = nodes.new("ShaderNodeTexImage")
-tex.image = img
 bump = nodes.new("ShaderNodeBump")
 bump.inputs["Distance"].default_value = 1.0           # (5.0's default is 1 mm)
 links.new(tex.outputs["Color"], bump.inputs["Height"])
 links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
-floor.data.materials.append(mat)
 """ + SUN_OVER_FLOOR + """
 R = render_lumen(save=("normal", "albedo", "emission", "position"), quality="OFF", exr="lumen.exr")
 render_cycles(16, exr="cycles.exr", bounces=0)

@@ -46,30 +46,39 @@ assert err is None, err
 scene.view_layers[0].use_pass_diffuse_direct = True
 """
 
-SNIPPET = f"""
+
+def textured_floor(name: str, width: int, height: int) -> str:
+    """Snippet: a 4 m grey floor (no specular) whose Principled BSDF has an Image Texture node
+    `tex` of a new float, Non-Color image `img` (width x height); `px` its pixels (all ones),
+    for the caller to fill, set and link (test_bump.py shares it)."""
+    return f"""
 import math
 
 scene = empty_scene(voxel_density=8.0, cache_dir="cache")
 bpy.ops.mesh.primitive_plane_add(size=4.0)
 floor = bpy.context.object
-img = bpy.data.images.new("Bumps", 16, 16, alpha=False, float_buffer=True)
+img = bpy.data.images.new("{name}", {width}, {height}, alpha=False, float_buffer=True)
 img.colorspace_settings.name = "Non-Color"
-px = np.ones((16, 16, 4), np.float32)
-tilted = np.array([math.sin({TILT}), 0.0, math.cos({TILT})])
-px[:, :8, :3] = (tilted + 1.0) / 2.0                  # left half (u < 0.5): tilted towards +x
-px[:, 8:, :3] = (np.array([0.0, 0.0, 1.0]) + 1.0) / 2.0
-img.pixels.foreach_set(px.ravel())
+px = np.ones(({height}, {width}, 4), np.float32)
 mat = principled("Bumpy", (0.8, 0.8, 0.8))
 nodes, links = mat.node_tree.nodes, mat.node_tree.links
 bsdf = nodes["Principled BSDF"]
 bsdf.inputs["Specular IOR Level"].default_value = 0.0
 tex = nodes.new("ShaderNodeTexImage")
 tex.image = img
+floor.data.materials.append(mat)
+"""
+
+
+SNIPPET = textured_floor("Bumps", 16, 16) + f"""
+tilted = np.array([math.sin({TILT}), 0.0, math.cos({TILT})])
+px[:, :8, :3] = (tilted + 1.0) / 2.0                  # left half (u < 0.5): tilted towards +x
+px[:, 8:, :3] = (np.array([0.0, 0.0, 1.0]) + 1.0) / 2.0
+img.pixels.foreach_set(px.ravel())
 tex.interpolation = 'Closest'
 nmap = nodes.new("ShaderNodeNormalMap")
 links.new(tex.outputs["Color"], nmap.inputs["Color"])
 links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
-floor.data.materials.append(mat)
 """ + SUN_OVER_FLOOR + """
 scene.view_layers[0].use_pass_normal = True
 R = render_lumen(save=("normal", "albedo", "emission", "position"), quality="OFF", exr="lumen.exr")
