@@ -53,7 +53,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import compute, radiance_cache, screen_trace
-from .gi_settings import GISettings
+from .gi_settings import SEED_FRAMES, GISettings
 from .probe_math import hammersley
 
 GBUF = ("gbuf_position", "gbuf_normal")
@@ -131,6 +131,7 @@ INTEGRATE = compute.Pass("screen_probe_integrate",
                                ('IVEC2', 'px_phase'), ('INT', 'px_step'), ('INT', 'fb_turn'),
                                ('INT', 'fb_skip'), ('INT', 'shading_normals')))
 FALLBACK_GROUP = 64
+R2 = (0.7548776662466927, 0.5698402909980532)   # the R2 sequence's step (1/phi2, 1/phi2^2)
 FALLBACK_BUDGET = 1.0      # the fallback's rays per frame, in the uniform probes' ray count
 FALLBACK_SKIP_MAX = 16     # screen_probe_fallback.comp.glsl's: a pixel traces at least 1 turn in 16
 VIEWPORT_FALLBACK_BUDGET = 0.5  # the viewport's (gather's fallback_budget): among 1,000 small
@@ -176,10 +177,17 @@ class ScreenProbes:
         self.fb_estimate = 0         # the last redraw's fallback pixels, skipped ones counted
 
     def jitter(self, frame: int):
-        """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets."""
+        """(tile pixel offset, ray jitter in [0,1)^2) of a frame: 16-point Hammersley sets, shifted
+        (Cranley-Patterson, an R2 step) by the F12 Seed (frame // SEED_FRAMES): the sets repeat
+        every 16 frames and SEED_FRAMES is a multiple of 16, so without the shift every Seed
+        placed and traced the same screen probes (only the surface cache's rays changed; the
+        screen trace's A/B over three seeds in bench/quality.py was one sample three times).
+        Seed 0 (and the viewport's first SEED_FRAMES redraws) is unshifted."""
         h = hammersley(16)
-        tile = np.minimum((h[frame % 16] * self.tile).astype(int), self.tile - 1)
-        ray = np.mod(h[(frame * 7 + 5) % 16] + 0.5 / 16.0, 1.0)
+        shift = np.mod((frame // SEED_FRAMES) * np.array(R2), 1.0)
+        tile = np.mod(h[frame % 16] + shift[::-1], 1.0)
+        tile = np.minimum((tile * self.tile).astype(int), self.tile - 1)
+        ray = np.mod(h[(frame * 7 + 5) % 16] + 0.5 / 16.0 + shift, 1.0)
         return tile, ray
 
     def gather(self, resources, gsdf, cache, gbuf: dict, cam_pos, sky, frame: int, t_max: float,

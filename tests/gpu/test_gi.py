@@ -146,13 +146,28 @@ def test_ray_lod_keeps_the_closed_room_series(tmp_path):
     assert (np.abs(lum - expected) <= 0.1 * expected).mean() >= 0.9
 
 
-SEEDS = COMMON + ROOM_SCENE + """
+SEEDS = COMMON + """
+from lumen_gi.gpu_shaders.screen_probes import ScreenProbes
+JITTER = [[]]        # per render: every gather's (tile offset, ray jitter)
+_jitter = ScreenProbes.jitter
+
+def jitter(self, frame):
+    tile, ray = _jitter(self, frame)
+    JITTER[-1].append(np.concatenate([np.asarray(tile, float), np.asarray(ray, float)]))
+    return tile, ray
+
+ScreenProbes.jitter = jitter
+""" + ROOM_SCENE + """
 np.save("seed0.npy", R["indirect"])
-bpy.context.scene.lumen.engine.seed = 1
-bpy.ops.render.render()
-R = engine.LAST_RENDER
-assert "error" not in R, R.get("traceback", R.get("error"))
-np.save("seed1.npy", R["indirect"])
+for seed in (1, 0):
+    bpy.context.scene.lumen.engine.seed = seed
+    JITTER.append([])
+    bpy.ops.render.render()
+    R = engine.LAST_RENDER
+    assert "error" not in R, R.get("traceback", R.get("error"))
+    if seed == 1:
+        np.save("seed1.npy", R["indirect"])
+np.save("jitter.npy", np.array(JITTER))
 emit(ok=True)
 """
 
@@ -168,3 +183,11 @@ def test_seed_changes_only_the_noise(tmp_path):
     print("seed 0 / 1 mean:", a.mean(), b.mean(), "max |diff|:", diff.max(), "mean:", diff.mean())
     assert diff.max() > 1e-4 * a.mean()              # other sequences, another noise
     assert abs(a.mean() - b.mean()) <= 0.01 * a.mean()
+    # the screen probes' rays too: their jitter sets repeat every 16 frames and seeds are
+    # SEED_FRAMES apart, so seed 1 traced seed 0's ray sets (one frame later) until each seed
+    # got its own shift
+    seed0, seed1, seed0_again = np.load(tmp_path / "jitter.npy")     # [gathers, tile xy + ray xy]
+    print("probe jitter (tile xy, ray xy), seed 0:", seed0, "seed 1:", seed1)
+    assert np.array_equal(seed0, seed0_again)
+    shared = np.abs(seed1[:, None, 2:] - seed0[None, :, 2:]).max(-1).min(-1) < 1e-6
+    assert not shared.any(), f"{shared.sum()} of seed 1's {len(seed1)} ray sets are seed 0's"
