@@ -61,6 +61,10 @@ def report(A, B, show: int):
     for name, m in (("same distance", same), ("other distance", ~same)):
         print(f"  {name:15s} rays {m.sum():6d} ({m.mean() * 100:5.2f}%)  |B - A| "
               f"{dL[m].sum() / total:.5f}  B - A {(Lb - La)[m].sum() / total:+.5f}")
+        dt = (tb - ta)[m]
+        if m.any():
+            print(f"      t B - A: mean {dt.mean() * 1e3:+.2f} mm, B farther {(dt > 0).mean() * 100:.1f}%"
+                  f", nearer {(dt < 0).mean() * 100:.1f}%")
         for i in np.argsort(-dL[m])[:show]:
             print(f"      t {ta[m][i]:8.3f} -> {tb[m][i]:8.3f}   "
                   f"L {La[m][i]:8.4f} -> {Lb[m][i]:8.4f}")
