@@ -131,7 +131,6 @@ INTEGRATE = compute.Pass("screen_probe_integrate",
                                ('IVEC2', 'px_phase'), ('INT', 'px_step'), ('INT', 'fb_turn'),
                                ('INT', 'fb_skip'), ('INT', 'shading_normals')))
 FALLBACK_GROUP = 64
-R2 = (0.7548776662466927, 0.5698402909980532)   # the R2 sequence's step (1/phi2, 1/phi2^2)
 FALLBACK_BUDGET = 1.0      # the fallback's rays per frame, in the uniform probes' ray count
 FALLBACK_SKIP_MAX = 16     # screen_probe_fallback.comp.glsl's: a pixel traces at least 1 turn in 16
 VIEWPORT_FALLBACK_BUDGET = 0.5  # the viewport's (gather's fallback_budget): among 1,000 small
@@ -157,6 +156,9 @@ PIXEL_GATHER = compute.Pass("pixel_gather", samplers=GBUF,
                             push=(('VEC3', 'cam_pos'), ('INT', 'rays'), ('INT', 'frame'),
                                   ('FLOAT', 't_max')))
 TRACE_VIEW = compute.Pass("gi_trace_view", push=(('MAT4', 'inv_view_proj'), ('FLOAT', 't_max')))
+
+
+R2 = (0.7548776662466927, 0.5698402909980532)  # the R2 sequence's step (1/phi2, 1/phi2^2)
 
 
 class ScreenProbes:
