@@ -27,6 +27,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "bench")]
 
+from quality import EPS, read_exr  # noqa: E402
+from quality_scenes import SCENES  # noqa: E402
+
 
 def seeds_arg(text: str) -> list:
     """'0-5' or '0,2,7' -> [0, 1, ...]."""
@@ -38,13 +41,12 @@ def seeds_arg(text: str) -> list:
 
 
 def rel_mse(x, ref):
-    return float(np.mean((x - ref) ** 2 / (ref ** 2 + 0.01)))
+    """quality.py's relMSE (metrics' rel_mse, without the other metrics)."""
+    return float(np.mean((x - ref) ** 2 / (ref ** 2 + EPS)))
 
 
 def table(out: Path, seeds, scenes, a: str, b: str):
     """Rows (scene, [B/A - 1 per seed], relMSE of the mean images A, B) from the runs' EXRs."""
-    from quality import read_exr
-
     rows = []
     for scene in scenes:
         refs = sorted(glob.glob(str(out / "refs" / f"ref_{scene}_*_s*.exr")))
@@ -66,7 +68,7 @@ def main():
     ap.add_argument("--a", default="lumen")
     ap.add_argument("--b", default="lumen_screen")
     ap.add_argument("--seeds", type=seeds_arg, default=seeds_arg("0-5"))
-    ap.add_argument("--scenes", default="cornell,window,thin,yard,glow,imported,textured")
+    ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--cycles-samples", type=int, default=512)
     ap.add_argument("--out", type=Path, default=Path("/tmp/seed_ab"))
