@@ -4,12 +4,15 @@ the global SDF and the sky go on from where the screen stops vouching for it (wi
 colour's hits, only for the rays the screen does not resolve):
 
     hzb.depth_pyramid   this frame's HZB (MIN of window depths), once per frame
+    screen_bounds       per pixel the neighbours' bound: the depth in front of which its column
+                        is in front of its 4 neighbours' planes (glsl/screen_bounds.comp.glsl),
+                        once per frame
     screen_trace_lib    per ray: where it hits what the camera sees, and how far it is known to
                         be empty (t_free: every cell it crossed, it crossed in front of what the
-                        cell shows; at a pixel, at least a voxel in front of its surface and not
-                        within the thickness behind a neighbour's plane: the depth buffer shows
-                        neither what lies within a voxel of a surface (a panel 5 cm under a
-                        ceiling, seen edge-on) nor the sub-pixel rim of a neighbour's surface).
+                        cell shows; at a pixel, at least a voxel in front of its surface and in
+                        front of the neighbours' bound: the depth buffer shows neither what lies
+                        within a voxel of a surface (a panel 5 cm under a ceiling, seen edge-on)
+                        nor the sub-pixel rim of a neighbour's surface).
                         A ray that passes behind what a pixel shows without hitting it ends
                         there (SCREEN_BEHIND: what is behind is unknown; walking on found
                         surfaces past a thin wall's edge, `thin` leaked 1.98%)
@@ -35,7 +38,9 @@ colour's hits, only for the rays the screen does not resolve):
     a corner's rays     a ray that starts inside a surface's hit shell (a probe in a concave
                         corner) hits it at once, as on the SDFs alone: the walk leaves its start
                         pixel untested and vouched past the wall beside it (glow: half the rays
-                        that differed from the SDF-only trace; test_screen_trace_corners)
+                        that differed from the SDF-only trace; test_screen_trace_corners). Tested
+                        before the walk; any other ray's SDF trace starts at least where its
+                        first step from the origin would land (that sample is this test's)
 
 Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step evaluates every
 object near the point; the screen finds the empty part of most of a room's rays. On llvmpipe the
@@ -64,8 +69,9 @@ from . import compute, hzb
 # screen_camera: the frame's view_proj, its 4 columns in 4 RGBA32F texels (a sampler and not a
 # push constant: the probe trace's push constants would pass Vulkan's 128 bytes)
 # screen_hidden: R32F, the object-table rows of the camera-hidden instances (one texel of -1: none)
-SAMPLERS = ("gbuf_position", "gbuf_normal", "hzb", "screen_colour", "screen_camera",
-            "screen_hidden")
+# screen_bounds: R32F, per pixel the neighbours' bound (BOUNDS)
+SAMPLERS = ("gbuf_position", "gbuf_normal", "hzb", "screen_bounds", "screen_colour",
+            "screen_camera", "screen_hidden")
 # screen_cam: camera position xyz, w the thickness (m) a surface is assumed behind the depth
 # buffer; screen_steps: HZB cells per ray (0: off)
 PUSH = (('VEC4', 'screen_cam'), ('INT', 'screen_steps'))
@@ -73,8 +79,23 @@ PUSH = (('VEC4', 'screen_cam'), ('INT', 'screen_steps'))
 # voxel towards the ray (no SDF steps), "COLOUR" the screen colour (the lecture's; noisier and
 # darker here: README)
 HITS = ("CACHE", "COLOUR")
+# 8 x 8 work groups: screen_bounds.comp.glsl's BOUNDS_TILE (a group shares its tile's planes)
+BOUNDS = compute.Pass("screen_bounds", samplers=("gbuf_position", "gbuf_normal"),
+                      images=(("bounds", 'R32F'),), push=(('MAT4', 'view_proj'),),
+                      group=(8, 8, 1))
 METHOD = compute.Pass("gi_trace_method", samplers=SAMPLERS,
                       push=PUSH + (('INT', 'rays'), ('INT', 'frame'), ('FLOAT', 't_max')))
+
+
+def neighbour_bounds(gbuf: dict, view_proj, width: int, height: int):
+    """Per pixel of this frame's G-buffer the neighbours' bound (R32F; BOUNDS,
+    glsl/screen_bounds.comp.glsl): Lumen's walk vouches for a pixel's empty space only in front
+    of it."""
+    out = compute.texture((width, height), 'R32F')
+    g = gbuf["textures"]
+    BOUNDS.run((width, height), gbuf_position=g["position"], gbuf_normal=g["normal"],
+               view_proj=view_proj, bounds=out)
+    return out
 
 
 class ScreenTrace:
@@ -98,6 +119,7 @@ class ScreenTrace:
         same = (previous is not None and previous.gbuf["textures"]["position"]
                 is gbuf["textures"]["position"])
         self.hzb = previous.hzb if same else hzb.depth_pyramid(gbuf, view_proj, width, height)
+        self.bounds = previous.bounds if same else neighbour_bounds(gbuf, view_proj, width, height)
         self.hzb_reused = same
         self.colour = None
         self.hidden_count = len(hidden)
@@ -124,6 +146,7 @@ class ScreenTrace:
         # the screen colour's hits: no gather yet to read, steps 0 (off)
         on = self.colour is not None or not self.needs_colour
         return dict(gbuf_position=g["position"], gbuf_normal=g["normal"], hzb=self.hzb,
+                    screen_bounds=self.bounds,
                     screen_colour=(self.colour if self.colour is not None
                                    else compute.texture((1, 1))),
                     screen_camera=self.camera, screen_hidden=self.hidden,
@@ -141,8 +164,9 @@ class ScreenTrace:
         return compute.read(out)
 
     def stats(self) -> dict:
-        """GPU bytes: HZB atlas (R32F) and the screen colour (RGBA32F)."""
-        out = {"screen_hzb": self.hzb.width * self.hzb.height * 4}
+        """GPU bytes: HZB atlas and neighbours' bounds (R32F) and the screen colour (RGBA32F)."""
+        out = {"screen_hzb": self.hzb.width * self.hzb.height * 4,
+               "screen_bounds": self.bounds.width * self.bounds.height * 4}
         if self.colour is not None:
             out["screen_colour"] = self.colour.width * self.colour.height * 16
         return out

@@ -1,6 +1,7 @@
 #include "sdf_lib.glsl"
 #include "global_sdf_lib.glsl"
 #include "gi_trace_lib.glsl"
+#define SCREEN_BOUNDS             /* screen_trace_lib.glsl: the walk reads screen_bounds */
 #include "screen_trace_lib.glsl"
 /* Lumen's ray (lecture 21, "Speed of Different Tracing Methods"; needs gi_trace_lib.glsl,
  * screen_trace_lib.glsl and screen_trace.py's SAMPLERS and PUSH): the screen first (HZB, at
@@ -68,6 +69,20 @@ float screen_hidden_guard(vec3 o, vec3 dir, float t_end)
 
 float lumen_walk(vec3 o, vec3 dir, float tmax, bool free_only, out float t_free, out ivec2 hit_px)
 {
+  /* A ray that starts inside a surface's hit shell (a probe in a concave corner) hits it at
+   * once on the SDFs (sdf_ray_lib.glsl), and must here too: the walk, which leaves its start
+   * pixel untested, vouched for the pixels around the corner, and the SDF trace started past
+   * the shell (bench/quality.py's `glow`: half the rays that differed from the SDF-only
+   * trace, found the far side of the room; tests/gpu/test_screen_trace_corners.py). Tested
+   * before the walk, which such a ray does not need. */
+  float h;
+  int nearest;
+  float d = sdf_scene(o, h, nearest);
+  if (d <= GI_HIT_VOXELS * h) {
+    t_free = 0.0;
+    hit_px = ivec2(-1);
+    return SCREEN_BEHIND;
+  }
   float ts = screen_trace(screen_view_proj(), screen_cam.xyz, o, dir, tmax, screen_steps,
                           screen_cam.w, 2.0 * gi_thin_margin(), true, free_only, t_free, hit_px);
   float end = ts >= 0.0 ? ts : t_free;
@@ -77,21 +92,11 @@ float lumen_walk(vec3 o, vec3 dir, float tmax, bool free_only, out float t_free,
     ts = SCREEN_BEHIND;
     hit_px = ivec2(-1);
   }
-  t_free = max(t_free - LUMEN_FREE_BACKOFF * 2.0 * gi_thin_margin(), 0.0);
-  if (t_free > 0.0 || ts >= 0.0) {
-    /* A ray that starts inside a surface's hit shell (a probe in a concave corner) hits it at
-     * once on the SDFs (sdf_ray_lib.glsl), and must here too: the walk, which leaves its start
-     * pixel untested, vouched for the pixels around the corner, and the SDF trace started past
-     * the shell (bench/quality.py's `glow`: half the rays that differed from the SDF-only
-     * trace, found the far side of the room; tests/gpu/test_screen_trace_corners.py). */
-    float h;
-    int nearest;
-    if (sdf_scene(o, h, nearest) <= GI_HIT_VOXELS * h) {
-      t_free = 0.0;
-      ts = SCREEN_BEHIND;
-      hit_px = ivec2(-1);
-    }
-  }
+  /* The SDF trace from the origin would take this sample first and step to max(d, 0.1 h)
+   * (gi_trace_mesh), or past the mesh SDFs' reach: it starts there at least, a sample
+   * fewer for the rays the screen vouches for less (a quarter to two fifths of them). */
+  t_free = max(t_free - LUMEN_FREE_BACKOFF * 2.0 * gi_thin_margin(),
+               min(max(d, 0.1 * h), GSDF_MESH_SPLIT));
   return ts;
 }
 

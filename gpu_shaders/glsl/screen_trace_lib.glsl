@@ -2,7 +2,8 @@
 #include "mip_lib.glsl"
 /* Screen-space rays on the HZB (lecture 21, "Hierachical Tracing"; needs mip_lib.glsl,
  * gbuffer_lib.glsl and the samplers hzb (MIN chain of window depths, hzb.py), gbuf_position,
- * gbuf_normal). Used by SSGI's trace and by Lumen's first trace (screen probes).
+ * gbuf_normal; with SCREEN_BOUNDS defined, screen_bounds). Used by SSGI's trace and by Lumen's
+ * first trace (screen probes).
  *
  * screen_trace walks o + t dir (t in [0, t_max]) as a straight line in (pixel x, pixel y, window
  * depth):
@@ -12,8 +13,8 @@
  *   from in front, or if it entered the pixel behind the plane by at most `thickness` metres
  *   moving against the surface's normal (surfaces are assumed that thick: the depth buffer has
  *   no back faces; a ray moving with the normal is leaving from behind a thin wall and would
- *   meet its unseen back); otherwise it walks on behind the surface. (The plane and not the pixel's centre depth: at a grazing angle one
- *   pixel spans a long stretch of its surface.)
+ *   meet its unseen back); otherwise it walks on behind the surface. (The plane and not the
+ *   pixel's centre depth: at a grazing angle one pixel spans a long stretch of its surface.)
  * At most max_steps cells are visited (the lecture: 50). The world ray is clipped to the near and
  * far planes, its screen line to the image.
  * free_only (Lumen's first trace with its hits placed by the mesh SDFs, lumen_trace_lib.glsl:
@@ -36,6 +37,20 @@
 #define SCREEN_LEFT -1.0
 #define SCREEN_STEPS -2.0
 #define SCREEN_BEHIND -3.0
+/* window depth: the neighbours' bound is taken this much nearer (float rounding) */
+#define SCREEN_BOUND_EPS 1e-6
+
+/* The window depth in front of which pixel px's column is in front of its 4 neighbours' planes
+ * (screen_bounds.comp.glsl; Lumen's trace defines SCREEN_BOUNDS and binds screen_bounds); 2.0,
+ * no bound, for SSGI, which does not ask (stop_behind false). */
+float screen_bound(ivec2 px)
+{
+#ifdef SCREEN_BOUNDS
+  return texelFetch(screen_bounds, px, 0).x;
+#else
+  return 2.0;
+#endif
+}
 
 vec3 screen_window(vec4 h, vec2 size)
 {
@@ -154,20 +169,18 @@ float screen_trace(mat4 view_proj, vec3 cam_pos, vec3 o, vec3 dir, float t_max, 
       /* Empty in front of what the pixel shows only from free_margin on (Lumen: a voxel): the
        * depth buffer does not show what lies within a voxel of a surface (a panel 5 cm under a
        * ceiling, seen edge-on from the ceiling beside it: bench/quality.py glow's ceiling lost
-       * its halo, relMSE 0.0209 -> 0.0240). Nor the sub-pixel rim of a neighbour's surface:
-       * the segment must not pass within the thickness behind any of its four neighbours'
-       * planes (a 10 cm wall's side at 48 px was passed through: its floor lost 4.7% of the
-       * wall's light, test_screen_trace). Only for a world trace that goes on from t_free. */
-      bool front = da >= free_margin && db >= free_margin;
-      for (int k = 0; stop_behind && front && free_so_far && k < 4; k++) {
-        ivec2 q = cell + ivec2(k == 0 ? 1 : (k == 1 ? -1 : 0), k == 2 ? 1 : (k == 3 ? -1 : 0));
-        vec3 pq, nq;
-        if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, size))
-            && gbuf_surface(q, cam_pos, pq, nq)) {
-          float qa = dot(o + dir * ta - pq, nq), qb = dot(o + dir * tb - pq, nq);
-          front = min(qa, qb) >= 0.0 || max(qa, qb) < -thickness;
-        }
-      }
+       * its halo, relMSE 0.0209 -> 0.0240). Nor the sub-pixel rim of a neighbour's surface
+       * (a 10 cm wall's side at 48 px was passed through: its floor lost 4.7% of the wall's
+       * light, test_screen_trace): with a world trace to go on from t_free (stop_behind), the
+       * segment must also lie in front of the neighbours' bound (screen_bound: in front of
+       * each of its four neighbours' planes that is not its own). Why a bound made once per
+       * pixel (screen_bounds.comp.glsl) and not the four planes tested here: those
+       * tests (eight G-buffer fetches in a loop) made the probe trace 5-16% slower even where
+       * no ray ran them (llvmpipe; bench/f12_ab.py, the README's issue 12 notes). It is
+       * stricter: a ray passing far behind a neighbour's plane (behind a nearer object's
+       * silhouette) is no longer vouched for there, and the SDFs go on from that point. */
+      bool front = da >= free_margin && db >= free_margin
+                   && (!stop_behind || max(za, zb) < screen_bound(cell) - SCREEN_BOUND_EPS);
       free_so_far = free_so_far && front;
       if (free_only && !free_so_far) {
         hit_px = cell;                    /* the surface the ray came near */

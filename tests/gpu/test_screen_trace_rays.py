@@ -8,10 +8,12 @@ thin strip (a card) at z = 5 covers the columns with NDC x in [-0.3, 0]; both fa
   the strip (stop_behind false, SSGI) it hits the far wall at t = 4 sqrt 2, a surface the screen
   cannot know is the ray's first (behind the strip may be anything: `thin` leaked 1.98% so);
   Lumen's trace (stop_behind true) ends SCREEN_BEHIND there, with t_free (where the SDFs go on)
-  at most where the ray went behind the strip (t <= 0.71 + a pixel).
+  at most where the ray enters the pixel beside the strip (t = 0.33): the ray is behind the
+  strip's plane, and that pixel's neighbours' bound (screen_trace.neighbour_bounds) is it.
 - A ray that meets the far wall in the open hits it at t = 4 sqrt 2 either way.
 - With free_only (Lumen's walk that only wants t_free, and ends where the screen stops vouching)
-  both rays give the same results, t_free bit for bit.
+  both rays give the same results, t_free bit for bit (the first one's hit_px: the pixel where it
+  stopped).
 - screen_cone, the colour a hit reads: the far wall noisy (its colour A plus seeded noise), the
   strip another colour B. A hit beside the strip with a wide cone averages only far-wall taps:
   its mean over hits is A within the noise's mean (no B: edge-aware), its spread over hits at
@@ -30,7 +32,7 @@ from blender_runner import run_python  # noqa: E402
 
 SNIPPET = """
 import gpu
-from lumen_gi.gpu_shaders import compute, hzb
+from lumen_gi.gpu_shaders import compute, hzb, screen_trace
 from lumen_gi.gpu_shaders.resources import float_buffer, glsl
 
 W = H = 32
@@ -106,21 +108,24 @@ def job():
                                          data=float_buffer(a))
     ptex, ntex, ctex = tex(pos), tex(nrm), tex(col)
     rtex, dtex = tex(R), tex(D)
-    gbuf = {"textures": {"position": ptex}}
+    gbuf = {"textures": {"position": ptex, "normal": ntex}}
     h = hzb.depth_pyramid(gbuf, vp, W, H)
+    bounds = screen_trace.neighbour_bounds(gbuf, vp, W, H)
     info = compute.new_info()
-    for slot, name in enumerate(("gbuf_position", "gbuf_normal", "hzb", "colour",
-                                 "rays", "dirs")):
+    for slot, name in enumerate(("gbuf_position", "gbuf_normal", "hzb", "screen_bounds",
+                                 "colour", "rays", "dirs")):
         info.sampler(slot, 'FLOAT_2D', name)
     info.image(0, 'RGBA32F', 'FLOAT_2D', "out_image", qualifiers={'WRITE'})
     info.image(1, 'RGBA32F', 'FLOAT_2D', "colour_out", qualifiers={'WRITE'})
     info.push_constant('MAT4', "view_proj")
     info.push_constant('VEC4', "cam")
-    src = glsl(("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl")) + SRC
+    src = ("#define SCREEN_BOUNDS\\n"
+           + glsl(("mip_lib.glsl", "gbuffer_lib.glsl", "screen_trace_lib.glsl")) + SRC)
     sh = compute.create(info, src)
     sh.uniform_sampler("gbuf_position", ptex)
     sh.uniform_sampler("gbuf_normal", ntex)
     sh.uniform_sampler("hzb", h)
+    sh.uniform_sampler("screen_bounds", bounds)
     sh.uniform_sampler("colour", ctex)
     sh.uniform_sampler("rays", rtex)
     sh.uniform_sampler("dirs", dtex)
@@ -151,13 +156,15 @@ def test_screen_trace_rays(tmp_path):
     # walking on behind the strip finds the far wall; Lumen's trace stops behind the strip
     assert abs(tr[0, 0] - far) < 0.1
     assert tr[2, 0] == -3.0                                    # SCREEN_BEHIND
-    assert 0.0 < tr[2, 1] <= 0.71 + 0.2                        # t_free: before the strip's shadow
+    assert 0.0 <= tr[2, 1] <= 0.34                             # t_free: not beside the strip
     for k in (1, 3):                                           # in the open: the same hit
         assert abs(tr[k, 0] - far) < 0.1
-    # free_only ends the walk where it stops vouching: the same results, t_free bit for bit
+    # free_only ends the walk where it stops vouching: the same results, t_free bit for bit; its
+    # hit_px is the pixel where it stopped (column 16, beside the strip), not the strip's
     free = int(d["free"])
     print("free only:", tr[free], tr[free + 1])
-    np.testing.assert_array_equal(tr[free], tr[2])
+    np.testing.assert_array_equal(tr[free, :2], tr[2, :2])
+    assert tr[free, 2] == 16.0
     np.testing.assert_array_equal(tr[free + 1], tr[3])
     wide = np.array([int(k) for k, j, i, tan in cone if tan > 0])
     narrow = np.array([(k, j, i) for k, j, i, tan in cone if tan == 0]).astype(int)
