@@ -44,8 +44,14 @@ colour's hits, only for the rays the screen does not resolve):
 
 Why it is faster: the HZB walk costs a few texel fetches per cell, an SDF step evaluates every
 object near the point; the screen finds the empty part of most of a room's rays. On llvmpipe the
-gain is bounded: the SDF steps it can skip were 25-35% of the probe trace, the walk costs 15-30%
-of it (bench/f12_ab.py, the README's issue 12 notes), the hit's surface-cache read the rest.
+gain is bounded: the SDF steps it can skip were 25-35% of the probe trace, the hit's
+surface-cache read, which both pay, most of the rest. The walk once cost about what it saved:
+its per-step test of the four neighbours' planes, compiled into the loop, slowed the trace by
+5-16% even where no ray ran it (llvmpipe runs eight rays in step and pays for code by its size),
+so that test is now a bound per pixel made once per frame (screen_bounds, ~20 ms at 640 x 360,
+rebuilt only when the G-buffer is); a corner's ray skips the walk; and every other ray's SDF
+trace starts at least where its first step from the origin would land (bench/f12_ab.py, the
+README's issue 12 notes, twentieth session).
 Why it is no less right: what it skips is what the depth buffer shows empty (the nearest
 surfaces, a voxel's margin and the neighbours' rims kept, a voxel back for what the camera does
 not see); what the screen does not show (behind, off screen) is still traced.
