@@ -20,9 +20,12 @@
 #define BOUNDS_SIDE (BOUNDS_TILE + 2)
 #define BOUNDS_EDGE_COS 0.9998    /* ~1.1 degrees */
 #define BOUNDS_EDGE_GAP 0.001     /* metres */
+/* Per tile texel: the point, the unit normal (0: nothing shown, or off the image) and the plane
+ * in clip space. No comments on the declarations: with one holding an apostrophe, Blender 5.3
+ * lost the declaration (s_clip undeclared; tests/versions). */
 shared vec3 s_point[BOUNDS_SIDE * BOUNDS_SIDE];
-shared vec3 s_normal[BOUNDS_SIDE * BOUNDS_SIDE];  /* unit; 0: nothing shown (or off image) */
-shared vec4 s_clip[BOUNDS_SIDE * BOUNDS_SIDE];    /* the surface's plane in clip space */
+shared vec3 s_normal[BOUNDS_SIDE * BOUNDS_SIDE];
+shared vec4 s_clip[BOUNDS_SIDE * BOUNDS_SIDE];
 
 /* Whether tile texel k's neighbour j shows a surface off k's plane (both show one). */
 bool off_plane(int k, int j)
