@@ -50,6 +50,7 @@ def new_info(group=(GROUP, GROUP, 1)):
 
 
 SHARED_DECL = re.compile(r"^[ \t]*shared[ \t]+[^;{}()]+;[ \t]*$", re.MULTILINE)
+SHARED_LINE = re.compile(r"^[ \t]*shared\b.*$", re.MULTILINE)
 SHARED_MACRO = "LUMEN_SHARED_DECLS"
 
 
@@ -57,7 +58,14 @@ def hoist_shared(info, source: str) -> str:
     """`source` with its work-group `shared` declarations moved into a define of `info`, expanded
     where the first of them stood. Why: Blender 5.3 drops `shared` declarations from a Python
     compute source (every use then fails to compile: 's_pos' undeclared; 5.0 compiles them),
-    while a define's text reaches the compiler as it is (both versions, measured)."""
+    while a define's text reaches the compiler as it is (both versions, measured).
+    A `shared` line this cannot move (a comment after the `;`) raises here, on every Blender:
+    left in place, 5.3 alone dropped it (screen_bounds' s_clip, tests/versions)."""
+    moved = {m.start() for m in SHARED_DECL.finditer(source)}
+    for m in SHARED_LINE.finditer(source):
+        if m.start() not in moved:
+            raise ValueError(f"a shared declaration must be alone on its line, nothing after "
+                             f"the ';' (compute.hoist_shared): {m.group(0).strip()!r}")
     decls = [m.group(0).strip() for m in SHARED_DECL.finditer(source)]
     if not decls:
         return source

@@ -21,8 +21,7 @@
 #define BOUNDS_EDGE_COS 0.9998    /* ~1.1 degrees */
 #define BOUNDS_EDGE_GAP 0.001     /* metres */
 /* Per tile texel: the point, the unit normal (0: nothing shown, or off the image) and the plane
- * in clip space. No comments on the declarations: with one holding an apostrophe, Blender 5.3
- * lost the declaration (s_clip undeclared; tests/versions). */
+ * in clip space (nothing after a shared declaration's ';': compute.hoist_shared). */
 shared vec3 s_point[BOUNDS_SIDE * BOUNDS_SIDE];
 shared vec3 s_normal[BOUNDS_SIDE * BOUNDS_SIDE];
 shared vec4 s_clip[BOUNDS_SIDE * BOUNDS_SIDE];

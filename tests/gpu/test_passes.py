@@ -1,4 +1,5 @@
 """compute.Pass: a pass binds every input from its declaration (missing or unknown inputs raise),
+a shared declaration with anything after its ';' is refused (compute.hoist_shared),
 push constants over Vulkan's 128 bytes go through a uniform block and still read right, and every
 Pass the engine declares compiles (the runner fails any run that prints Blender's push-constant
 warning). llvmpipe, bpy in a subprocess."""
@@ -72,6 +73,21 @@ def job():
         except ValueError as e:
             errors.append(str(e))
     OUT["errors"] = errors
+    # a shared declaration hoist_shared cannot move (something after its ';') is refused on every
+    # Blender (5.3 alone dropped it when left in place)
+    noted = compute.Pass("test_shared_noted", source='''
+shared float s_a[64];    /* a note */
+void main()
+{
+  s_a[0] = 1.0;
+  imageStore(out_image, ivec2(0), vec4(s_a[0]));
+}
+''')
+    try:
+        noted.shader
+        OUT["shared_noted"] = None
+    except ValueError as e:
+        OUT["shared_noted"] = str(e)
     # every Pass the engine's modules declare compiles, within 128 B or through a block
     passes = {}
     for p in compute.declared_passes():
@@ -106,6 +122,7 @@ def test_pass_binds_from_its_declaration(tmp_path):
     assert missing == "pass test_big_push: missing input 't_iv2'"
     assert unknown == "pass test_big_push: unknown input 'extra'"
     assert sampler == "pass test_big_push: missing input 'src'"
+    assert "alone on its line" in out["shared_noted"] and "s_a[64]" in out["shared_noted"]
     assert out["passes"], "no compute.Pass found in the engine's modules"
     for name, p in out["passes"].items():
         assert p["bytes"] <= 128 or p["block"], name
