@@ -105,8 +105,8 @@ def neighbour_bounds(gbuf: dict, view_proj, width: int, height: int):
 
 
 class ScreenTrace:
-    """This frame's HZB and screen colour (held by the engine's SceneState between the
-    iterations of one frame; rebuilt per frame)."""
+    """This frame's HZB, neighbours' bounds and screen colour (held by the engine's SceneState
+    between the iterations of one frame; rebuilt per frame)."""
 
     def __init__(self, gbuf: dict, view_proj, cam_pos, width: int, height: int, steps: int = 50,
                  thickness: float = 0.1, hidden=(), rays: int = 64, hit: str = "CACHE",
