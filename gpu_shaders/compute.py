@@ -61,16 +61,17 @@ def hoist_shared(info, source: str) -> str:
     while a define's text reaches the compiler as it is (both versions, measured).
     A `shared` line this cannot move (a comment after the `;`) raises here, on every Blender:
     left in place, 5.3 alone dropped it (screen_bounds' s_clip, tests/versions)."""
-    moved = {m.start() for m in SHARED_DECL.finditer(source)}
+    found = list(SHARED_DECL.finditer(source))
+    moved = {m.start() for m in found}
     for m in SHARED_LINE.finditer(source):
         if m.start() not in moved:
             raise ValueError(f"a shared declaration must be alone on its line, nothing after "
                              f"the ';' (compute.hoist_shared): {m.group(0).strip()!r}")
-    decls = [m.group(0).strip() for m in SHARED_DECL.finditer(source)]
+    decls = [m.group(0).strip() for m in found]
     if not decls:
         return source
     info.define(SHARED_MACRO, " ".join(decls))
-    first = SHARED_DECL.search(source)
+    first = found[0]
     rest = SHARED_DECL.sub("", source[first.end():])
     return source[:first.start()] + SHARED_MACRO + rest
 
